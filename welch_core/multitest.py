@@ -1,0 +1,113 @@
+"""From many tile-channel p-values to one decision with a stated false-positive rate.
+
+The paper reads the colour map and the histogram by eye (§4.4). Here: the channels of a tile are combined by
+Bonferroni (valid however strongly R, G and B are correlated), tiles by Holm (family-wise error, finds localised
+bias) and by a one-sided Kolmogorov-Smirnov test of the tile p-values against the uniform distribution (the
+histogram reasoning of §3.2 made quantitative: finds a weak bias spread over many tiles). The global p-value is
+the Bonferroni combination of the two, so a `biased` verdict has a false-positive rate of at most alpha.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+from scipy import stats
+
+from .errors import WelchInputError, check_alpha
+
+__all__ = ["GlobalTest", "bh_qvalues", "combine_channels", "global_test", "holm", "uniformity_pvalue"]
+
+
+def combine_channels(pvalues: npt.ArrayLike) -> np.ndarray:
+    """One p-value per tile from its channels (last axis): Bonferroni on the smallest, k * min p, capped at 1.
+
+    k counts the channels that have a p-value; a tile with none gets NaN. No independence is assumed.
+    """
+    p = np.asarray(pvalues, dtype=float)
+    k = np.isfinite(p).sum(axis=-1)
+    with np.errstate(invalid="ignore"):
+        smallest = np.nanmin(np.where(np.isfinite(p), p, np.inf), axis=-1)
+        return np.where(k > 0, np.minimum(1.0, k * smallest), np.nan)
+
+
+def holm(pvalues: npt.ArrayLike) -> np.ndarray:
+    """Holm's step-down adjusted p-values (family-wise error under any dependence). NaN stays NaN."""
+    p = np.asarray(pvalues, dtype=float)
+    out = np.full(p.shape, np.nan)
+    valid = np.isfinite(p)
+    pv = p[valid]
+    m = pv.size
+    if m:
+        order = np.argsort(pv)
+        adjusted = np.maximum.accumulate((m - np.arange(m)) * pv[order])
+        result = np.empty(m)
+        result[order] = np.minimum(1.0, adjusted)
+        out[valid] = result
+    return out
+
+
+def bh_qvalues(pvalues: npt.ArrayLike) -> np.ndarray:
+    """Benjamini-Hochberg q-values (false-discovery rate for independent or positively dependent tests)."""
+    p = np.asarray(pvalues, dtype=float)
+    out = np.full(p.shape, np.nan)
+    valid = np.isfinite(p)
+    pv = p[valid]
+    m = pv.size
+    if m:
+        order = np.argsort(pv)
+        scaled = pv[order] * m / np.arange(1, m + 1)
+        q = np.minimum.accumulate(scaled[::-1])[::-1]
+        result = np.empty(m)
+        result[order] = np.minimum(1.0, q)
+        out[valid] = result
+    return out
+
+
+def uniformity_pvalue(pvalues: npt.ArrayLike) -> float:
+    """One-sided KS test that the p-values are not stochastically smaller than uniform (paper §3.2, Fig. 10).
+
+    Valid for conservative (super-uniform) p-values too, such as Bonferroni-combined tile p-values. NaN if none.
+    """
+    p = np.asarray(pvalues, dtype=float)
+    p = p[np.isfinite(p)]
+    if p.size == 0:
+        return float("nan")
+    # alternative="greater": the empirical CDF lies above the uniform CDF, i.e. too many small p-values.
+    return float(stats.kstest(p, "uniform", alternative="greater").pvalue)
+
+
+@dataclass(frozen=True)
+class GlobalTest:
+    """The image-level test: is any tile biased (Holm), or are the tile p-values too small overall (KS)?"""
+
+    pvalue: float  # Bonferroni over the two components: NaN when there are no tiles
+    holm_pvalue: float  # smallest Holm-adjusted tile p-value
+    uniformity_pvalue: float  # one-sided KS of the tile p-values
+    adjusted: np.ndarray  # Holm-adjusted tile p-values, NaN where excluded
+    qvalues: np.ndarray  # Benjamini-Hochberg q-values, NaN where excluded
+    alpha: float
+
+    @property
+    def rejected(self) -> bool:
+        return bool(np.isfinite(self.pvalue) and self.pvalue <= self.alpha)
+
+
+def global_test(tile_pvalues: npt.ArrayLike, alpha: float = 0.01) -> GlobalTest:
+    """Combine tile p-values (NaN = excluded) into the global p-value at level `alpha`."""
+    alpha = check_alpha(alpha)
+    p = np.asarray(tile_pvalues, dtype=float)
+    finite_p = p[np.isfinite(p)]
+    if ((finite_p < 0) | (finite_p > 1)).any():
+        raise WelchInputError("`tile_pvalues` must lie in [0, 1]")
+    adjusted = holm(p)
+    qvalues = bh_qvalues(p)
+    finite = np.isfinite(adjusted)
+    if not finite.any():
+        nan = float("nan")
+        return GlobalTest(nan, nan, nan, adjusted, qvalues, alpha)
+    holm_min = float(np.min(adjusted[finite]))
+    ks = uniformity_pvalue(p)
+    combined = min(1.0, 2.0 * min(holm_min, ks))  # Bonferroni over the two components
+    return GlobalTest(combined, holm_min, ks, adjusted, qvalues, alpha)
