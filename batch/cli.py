@@ -1,0 +1,323 @@
+"""Command line of the batch tool.
+
+    python -m batch render [SCENE.blend] [--scene corner|corner_glass|glossy] --seeds A:B|S1,S2,... --spp N
+                           [--tile 32] [--resolution W H] [--device CPU] [--set RNA.PATH=VALUE ...]
+                           [--resume] [--json-progress] --out STATS
+    python -m batch ingest PASS.exr [PASS.exr ...] --spp N [--tile 32] [--seeds ...] --out STATS
+    python -m batch compare REF TEST [--alpha 0.01] [--paired|--unpaired] --out REPORT_DIR
+    python -m batch selftest RUN [--alpha 0.01] --out REPORT_DIR
+    python -m batch lint SCENE.blend
+    python -m batch demo [--out REPORT_DIR]
+
+Inside Blender the same arguments follow ``--``:
+
+    blender -b SCENE.blend --python-exit-code 1 --python batch/blender_entry.py -- render --seeds 0:64 ...
+
+Exit codes: 0 = done / no evidence of bias / lint clean, 1 = biased / lint found biased settings, 2 = usage or
+input error, 3 = inconclusive, 4 = internal error, 130 = interrupted (the checkpoint is kept).
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import os
+import sys
+import traceback
+
+from ._siblings import welch_core as wc
+from .seeds import parse_seeds
+
+EXIT_OK, EXIT_BIASED, EXIT_USAGE, EXIT_INCONCLUSIVE, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 4, 130
+VERDICT_EXIT = {"no_evidence": EXIT_OK, "biased": EXIT_BIASED, "inconclusive": EXIT_INCONCLUSIVE}
+DEFAULT_ALPHA = 0.01
+
+
+def _seeds_arg(text: str) -> list[int]:
+    try:
+        return parse_seeds(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("--seeds ")) from None
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
+    return value
+
+
+def _alpha(text: str) -> float:
+    try:
+        return wc.errors.check_alpha(float(text))
+    except (ValueError, wc.WelchInputError):
+        raise argparse.ArgumentTypeError(f"must be a number in (0, 1), got {text!r}") from None
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="python -m batch",
+        description="Detect bias in Monte Carlo renderers with Welch's t-test: render passes with different seeds, "
+        "collect per-tile statistics, compare two runs.",
+        epilog="Exit codes: 0 no evidence of bias / done, 1 biased, 2 usage or input error, 3 inconclusive, "
+        "4 internal error, 130 interrupted.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    r = sub.add_parser(
+        "render",
+        help="render passes with Cycles into a statistics file",
+        description="Render one pass per seed with Cycles (denoising, adaptive sampling, time limit, "
+        "compositing off; everything else as the scene has it) and accumulate per-tile statistics.",
+    )
+    r.add_argument("blend", nargs="?", metavar="SCENE.blend", help="scene file (default: the file Blender opened)")
+    r.add_argument("--scene", help="a built-in scene instead of a file: corner, corner_glass, glossy")
+    r.add_argument("--blend-scene", metavar="NAME", help="which scene of SCENE.blend (default: its active scene)")
+    r.add_argument("--seeds", type=_seeds_arg, required=True, help="A:B (half-open range) or S1,S2,...")
+    r.add_argument("--spp", type=_positive_int, required=True, help="samples per pixel per pass")
+    r.add_argument("--tile", type=_positive_int, default=32, help="tile edge in pixels (default 32, as the paper)")
+    r.add_argument("--resolution", type=_positive_int, nargs=2, metavar=("W", "H"), help="override the resolution")
+    r.add_argument("--device", default="CPU", choices=["CPU", "GPU"], help="Cycles device (default CPU)")
+    r.add_argument(
+        "--sampling-pattern",
+        default="TABULATED_SOBOL",
+        help="Cycles sampling pattern, set explicitly and recorded (default TABULATED_SOBOL)",
+    )
+    r.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="RNA.PATH=VALUE",
+        help="property override, repeatable: cycles.sample_clamp_indirect=0, world.color=0.1,0.1,0.1, "
+        'materials["Walls"].node_tree.nodes["Diffuse BSDF"].inputs["Color"].default_value=0.21,0.21,0.21,1',
+    )
+    r.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")
+    r.add_argument(
+        "--on-nan",
+        default="stop",
+        choices=["stop", "skip", "keep"],
+        help="a pass with NaN/inf pixels: stop the run, skip the pass, or keep it (its tiles are excluded)",
+    )
+    r.add_argument(
+        "--checkpoint-every",
+        type=_positive_int,
+        default=8,
+        metavar="N",
+        help="save the statistics file every N passes (default 8)",
+    )
+    r.add_argument("--json-progress", action="store_true", help="one JSON line per pass on stdout, for programs")
+    r.add_argument("--out", required=True, metavar="STATS", help="statistics file to write (.npz)")
+
+    i = sub.add_parser(
+        "ingest",
+        help="turn EXR passes of any renderer into a statistics file",
+        description="One EXR file per independent pass (its own seed), all the same size.",
+    )
+    i.add_argument("passes", nargs="+", metavar="PASS.exr")
+    i.add_argument("--spp", type=_positive_int, required=True, help="samples per pixel of each pass")
+    i.add_argument("--tile", type=_positive_int, default=32)
+    i.add_argument(
+        "--seeds",
+        type=_seeds_arg,
+        help="the passes' seeds, in file order; without it each pass gets an id from its content, so the "
+        "run counts as independent of every other (unpaired test)",
+    )
+    i.add_argument("--renderer", default="unknown", help="renderer name to record")
+    i.add_argument("--on-nan", default="stop", choices=["stop", "skip", "keep"])
+    i.add_argument("--out", required=True, metavar="STATS")
+
+    for name, text in (
+        ("compare", "compare two runs: is TEST biased against REF?"),
+        ("selftest", "A/A test: one run's two halves against each other"),
+    ):
+        c = sub.add_parser(name, help=text, description=text + " Writes report.json, maps, histogram, report.html.")
+        c.add_argument("runs", nargs=2 if name == "compare" else 1, metavar="REF TEST" if name == "compare" else "RUN")
+        c.add_argument("--alpha", type=_alpha, default=DEFAULT_ALPHA, help="false-positive rate of a biased verdict")
+        c.add_argument(
+            "--pvalue-method",
+            default="exact",
+            choices=wc.PVALUE_METHODS,
+            help="exact Student t (default); gauss/as_erf: the paper's approximations where nu >= 20",
+        )
+        c.add_argument("--out", required=True, metavar="REPORT_DIR")
+        if name == "compare":
+            kind = c.add_mutually_exclusive_group()
+            kind.add_argument(
+                "--paired",
+                dest="kind",
+                action="store_const",
+                const="paired",
+                help="paired test (identical seeds on both sides)",
+            )
+            kind.add_argument(
+                "--unpaired", dest="kind", action="store_const", const="welch", help="Welch's test (disjoint seeds)"
+            )
+            c.set_defaults(kind="auto")
+
+    lint = sub.add_parser("lint", help="list settings that make Cycles biased or passes dependent")
+    lint.add_argument("blend", metavar="SCENE.blend")
+    lint.add_argument("--blend-scene", metavar="NAME")
+
+    d = sub.add_parser("demo", help="the built-in corner scene against a biased variant (walls 0.21 instead of 0.2)")
+    d.add_argument("--out", default=os.path.join("out", "demo"), metavar="REPORT_DIR")
+    d.add_argument("--passes", type=_positive_int, default=None, help="passes per side")
+    d.add_argument("--resolution", type=_positive_int, default=None, help="square image size in pixels")
+    return parser
+
+
+def argv_after_dashdash(argv: list[str]) -> list[str]:
+    """Blender passes the script's own arguments after ``--``; everything before is Blender's."""
+    return argv[argv.index("--") + 1 :] if "--" in argv else []
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return COMMANDS[args.command](args)
+    except KeyboardInterrupt:
+        print("interrupted: the statistics written so far are kept (continue with --resume)", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except Exception as exc:
+        if _is_input_error(exc):
+            _report_error(args, str(exc))
+            return EXIT_USAGE
+        traceback.print_exc()
+        _report_error(args, f"internal error: {type(exc).__name__}: {exc}")
+        return EXIT_INTERNAL
+
+
+def _is_input_error(exc: Exception) -> bool:
+    if isinstance(exc, (wc.WelchInputError, OSError)):
+        return True
+    names = {cls.__name__ for cls in type(exc).__mro__}
+    return bool(names & {"RunError", "RenderSetupError", "OverrideError", "LintError"})
+
+
+def _report_error(args, message: str) -> None:
+    message = " ".join(message.split())  # one line
+    if getattr(args, "json_progress", False):
+        from .progress import Progress
+
+        Progress(0, json_lines=True).error(message)
+    print(f"error: {message}", file=sys.stderr)
+
+
+# -- commands ----------------------------------------------------------------------------------------------
+
+
+def cmd_render(args) -> int:
+    from .progress import Progress
+    from .run import RenderJob, render_run
+
+    job = RenderJob(
+        out=args.out,
+        seeds=args.seeds,
+        spp=args.spp,
+        blend=args.blend,
+        scene=args.scene,
+        blend_scene=args.blend_scene,
+        tile=args.tile,
+        resolution=tuple(args.resolution) if args.resolution else None,
+        device=args.device,
+        sampling_pattern=args.sampling_pattern,
+        overrides=args.overrides,
+        resume=args.resume,
+        on_nan=args.on_nan,
+        checkpoint_every=args.checkpoint_every,
+    )
+    render_run(job, Progress(len(job.seeds), args.json_progress))
+    return EXIT_OK
+
+
+def cmd_ingest(args) -> int:
+    from .progress import Progress
+
+    if args.seeds is not None and len(args.seeds) != len(args.passes):
+        raise wc.WelchInputError(f"--seeds gives {len(args.seeds)} seeds for {len(args.passes)} files")
+    first = wc.read_exr(args.passes[0])
+    stats = wc.TileStats(first.shape[0], first.shape[1], args.tile, 3, wc.RunInfo(spp=args.spp, renderer=args.renderer))
+    progress = Progress(len(args.passes), label="ingest")
+    progress.start(0, args.out)
+    for index, path in enumerate(args.passes):
+        image = first if index == 0 else wc.read_exr(path)
+        seed = args.seeds[index] if args.seeds is not None else _content_seed(path)
+        try:
+            stats.add_pass(image, seed, allow_nonfinite=args.on_nan == "keep")
+        except wc.WelchInputError as exc:
+            if args.on_nan != "skip" or "non-finite" not in str(exc):
+                raise wc.WelchInputError(f"{path}: {exc}") from None
+            progress.warning(f"{path}: {exc}: pass skipped")
+            continue
+        progress.pass_done(seed, 0.0)
+    wc.save_stats(args.out, stats)
+    progress.finished(args.out, stats.n)
+    return EXIT_OK
+
+
+def _content_seed(path: str) -> int:
+    """An id for a pass of unknown seed: 62 bits of the hash of its file (identical files get the same id)."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            digest.update(chunk)
+    return int.from_bytes(digest.digest()[:8], "little") >> 2
+
+
+def cmd_compare(args) -> int:
+    ref, test = (wc.load_stats(path) for path in args.runs)
+    result = wc.compare(ref, test, args.alpha, args.kind, args.pvalue_method)
+    return _write_and_print(args, ref, test, result, *args.runs)
+
+
+def cmd_selftest(args) -> int:
+    run = wc.load_stats(args.runs[0])
+    if run.n < 4:
+        raise wc.WelchInputError(f"selftest needs at least 4 passes to split into halves, {args.runs[0]} has {run.n}")
+    first, second = wc.split_halves(run)
+    result = wc.compare(first, second, args.alpha, "welch", args.pvalue_method)
+    name = os.path.basename(args.runs[0])
+    return _write_and_print(args, first, second, result, f"{name} (even passes)", f"{name} (odd passes)")
+
+
+def _write_and_print(args, ref, test, result, ref_name: str, test_name: str) -> int:
+    from .report import verdict_line, write_report
+
+    report = write_report(args.out, ref, test, result, ref_name, test_name)
+    print(verdict_line(report))
+    for note in report["notes"]:
+        print(f"  note: {note}")
+    print(f"report: {os.path.join(args.out, 'report.html')}")
+    return VERDICT_EXIT[result.verdict]
+
+
+def cmd_lint(args) -> int:
+    from .lint import lint_scene
+    from .render import open_scene
+
+    findings = lint_scene(open_scene(args.blend, None, args.blend_scene))
+    for finding in findings:
+        print(finding.format())
+    biased = [f for f in findings if f.severity in ("biased", "not-independent")]
+    print(f"{len(findings)} findings, {len(biased)} that bias the image or make passes dependent")
+    return EXIT_BIASED if biased else EXIT_OK
+
+
+def cmd_demo(args) -> int:
+    from .demo import run_demo
+
+    result = run_demo(args.out, passes=args.passes, resolution=args.resolution)
+    return VERDICT_EXIT[result.verdict]
+
+
+COMMANDS = {
+    "render": cmd_render,
+    "ingest": cmd_ingest,
+    "compare": cmd_compare,
+    "selftest": cmd_selftest,
+    "lint": cmd_lint,
+    "demo": cmd_demo,
+}
