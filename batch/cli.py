@@ -183,7 +183,7 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_INTERRUPTED
     except Exception as exc:
         if _is_input_error(exc):
-            _report_error(args, str(exc))
+            _report_error(args, _describe(exc))
             return EXIT_USAGE
         traceback.print_exc()
         _report_error(args, f"internal error: {type(exc).__name__}: {exc}")
@@ -195,6 +195,12 @@ def _is_input_error(exc: Exception) -> bool:
         return True
     names = {cls.__name__ for cls in type(exc).__mro__}
     return bool(names & {"RunError", "RenderSetupError", "OverrideError", "LintError"})
+
+
+def _describe(exc: Exception) -> str:
+    if isinstance(exc, OSError) and exc.strerror:
+        return f"{exc.filename}: {exc.strerror}" if exc.filename else exc.strerror
+    return str(exc)
 
 
 def _report_error(args, message: str) -> None:

@@ -150,7 +150,9 @@ def _channels_figure(plt, path: Path, result: wc.Comparison) -> str:
 
 
 def _effect_figure(plt, path: Path, result: wc.Comparison) -> str:
-    rel = np.nanmean(np.where(result.reasons == wc.Reason.VALID, result.effect.rel_diff, np.nan), axis=-1) * 100
+    valid = result.reasons == wc.Reason.VALID
+    with np.errstate(invalid="ignore"):  # tiles with no valid channel stay NaN (blank)
+        rel = np.where(valid, result.effect.rel_diff, 0.0).sum(axis=-1) / valid.sum(axis=-1) * 100
     limit = np.nanmax(np.abs(rel)) if np.isfinite(rel).any() else 1.0
     fig, ax = plt.subplots(figsize=(5, 5 * result.height / result.width + 0.3))
     shown = ax.imshow(rel, cmap="RdBu_r", vmin=-limit, vmax=limit, interpolation="nearest")
