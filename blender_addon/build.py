@@ -1,0 +1,192 @@
+"""Build the extension zips without a Blender binary.
+
+    python -m blender_addon.build [--platform linux-x64 ...] [--dist-dir dist] [--offline]
+
+For each chosen platform (default: all the manifest declares) the cp311 wheels the manifest lists are downloaded
+into ``./wheels`` (kept as a cache, nothing else in the repository is written), the files selected by the
+manifest's ``[build]`` rules are staged with a manifest limited to those platforms, ``blender_ext.py build
+--split-platforms`` (shipped inside the bpy wheel) writes one zip per platform into ``dist/``, and every zip is
+validated. Exit code 0 on success, 1 on failure with a one-line message on stderr.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import tomllib
+from pathlib import Path
+from types import ModuleType
+
+MANIFEST = "blender_manifest.toml"
+ROOT = Path(__file__).resolve().parent.parent
+
+
+class BuildError(RuntimeError):
+    """A build step failed; the message is one line."""
+
+
+def blender_scripts_dir() -> Path:
+    """Blender's ``scripts`` folder inside the installed bpy wheel, found without importing bpy."""
+    spec = importlib.util.find_spec("bpy")
+    if spec is None or not spec.submodule_search_locations:
+        raise BuildError("the bpy module is not installed (pip install bpy)")
+    bpy_dir = Path(next(iter(spec.submodule_search_locations)))
+    found = sorted(bpy_dir.glob("*/scripts/addons_core/bl_pkg/cli/blender_ext.py"))
+    if not found:
+        raise BuildError(f"no blender_ext.py inside {bpy_dir}")
+    return found[-1].parents[3]
+
+
+def blender_ext_script() -> Path:
+    return blender_scripts_dir() / "addons_core" / "bl_pkg" / "cli" / "blender_ext.py"
+
+
+def valid_tags_file() -> Path:
+    return blender_scripts_dir() / "modules" / "_bpy_internal" / "extensions" / "tags.py"
+
+
+def load_blender_ext() -> ModuleType:
+    """The build tool as a module, so file selection and wheel platforms match what it does itself."""
+    spec = importlib.util.spec_from_file_location("_blender_ext", blender_ext_script())
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def read_manifest(root: Path = ROOT) -> dict:
+    with open(root / MANIFEST, "rb") as fh:
+        return tomllib.load(fh)
+
+
+def wheel_platforms(ext: ModuleType, wheel: str) -> list[str]:
+    """Blender platforms a wheel file name is built for, e.g. ``win_amd64`` -> ``["windows-x64"]``."""
+    return ext.blender_platforms_from_wheel_platform(Path(wheel).stem.split("-")[-1])
+
+
+def wheels_for(ext: ModuleType, manifest: dict, platforms: list[str]) -> list[str]:
+    """The manifest's wheel paths (``./wheels/...``) needed by any of ``platforms``."""
+    return [w for w in manifest.get("wheels", []) if set(wheel_platforms(ext, w)) & set(platforms)]
+
+
+def pip_download_command(wheel_filename: str, dest: Path) -> list[str]:
+    """A pip command that fetches exactly this wheel file (name, version, Python and platform tags)."""
+    name, version, python_tag, abi_tag, platform_tag = Path(wheel_filename).stem.split("-")[-5:]
+    command = [sys.executable, "-m", "pip", "download", f"{name}=={version}", "--only-binary=:all:", "--no-deps"]
+    command += ["--python-version", "3.11", "--implementation", "cp", "--abi", abi_tag, "--dest", str(dest)]
+    for tag in platform_tag.split("."):
+        command += ["--platform", tag]
+    if python_tag != "cp311":
+        raise BuildError(f"wheel {wheel_filename} is not for CPython 3.11 (Blender 5.0)")
+    return command
+
+
+def ensure_wheels(root: Path, wheels: list[str], offline: bool) -> None:
+    """Download the missing wheels into ``root/wheels`` and check pip produced the exact file names listed."""
+    for wheel in wheels:
+        path = root / wheel
+        if path.is_file():
+            continue
+        if offline:
+            raise BuildError(f"missing {wheel} and --offline was given")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        done = subprocess.run(pip_download_command(path.name, path.parent), capture_output=True, text=True)
+        if done.returncode != 0 or not path.is_file():
+            tail = (done.stderr.strip().splitlines() or ["no output"])[-1]
+            raise BuildError(f"pip could not fetch {path.name}: {tail}")
+
+
+def select_files(ext: ModuleType, root: Path, manifest: dict) -> list[str]:
+    """Relative paths the manifest's ``[build]`` exclusions keep, walked the way ``blender_ext`` walks them."""
+    patterns = manifest.get("build", {}).get("paths_exclude_pattern")
+    if not patterns:
+        raise BuildError(f"{MANIFEST} needs [build] paths_exclude_pattern")
+    matcher = ext.PathPatternMatch(patterns)
+
+    def keep(path: str, is_dir: bool) -> bool:
+        path = path.replace(os.sep, "/")
+        return not matcher.test_path(path + "/" if is_dir else path)
+
+    return sorted(rel for _abs, rel in ext.scandir_recursive(str(root), filter_fn=keep) if rel != MANIFEST)
+
+
+def _toml_list(values: list[str]) -> str:
+    return "[\n" + "".join(f'  "{v}",\n' for v in values) + "]"
+
+
+def limited_manifest(text: str, platforms: list[str], wheels: list[str]) -> str:
+    """The manifest text with its ``platforms`` and ``wheels`` lists replaced."""
+    for key, values in (("platforms", platforms), ("wheels", wheels)):
+        text, count = re.subn(rf"(?ms)^{key} = \[.*?\]", f"{key} = {_toml_list(values)}", text, count=1)
+        if count != 1:
+            raise BuildError(f"{MANIFEST} has no top-level {key} list")
+    return text
+
+
+def stage(root: Path, files: list[str], manifest_text: str, wheels: list[str], dest: Path) -> None:
+    """Copy the selected files and wheels into ``dest`` and write the limited manifest there."""
+    for rel in [*files, *wheels]:
+        target = dest / rel
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(root / rel, target)
+    (dest / MANIFEST).write_text(manifest_text, encoding="utf-8")
+
+
+def run_blender_ext(*args: str) -> None:
+    command = [sys.executable, str(blender_ext_script()), *args, f"--valid-tags={valid_tags_file()}"]
+    done = subprocess.run(command, capture_output=True, text=True)
+    if done.returncode != 0:
+        lines = (done.stdout + done.stderr).strip().splitlines() or ["no output"]
+        raise BuildError(f"blender_ext.py {args[0]} failed: {lines[-1]}")
+
+
+def zip_name(manifest: dict, platform: str) -> str:
+    return f"{manifest['id']}-{manifest['version']}-{platform.replace('-', '_')}.zip"
+
+
+def build(platforms: list[str] | None, dist_dir: Path, root: Path = ROOT, offline: bool = False) -> list[Path]:
+    """Build and validate one zip per platform; returns their paths."""
+    manifest = read_manifest(root)
+    declared = manifest.get("platforms", [])
+    platforms = platforms or declared
+    unknown = sorted(set(platforms) - set(declared))
+    if unknown:
+        raise BuildError(f"platform {unknown[0]!r} is not in the manifest's platforms {declared}")
+    run_blender_ext("validate", str(root))
+    ext = load_blender_ext()
+    wheels = wheels_for(ext, manifest, platforms)
+    ensure_wheels(root, wheels, offline)
+    text = limited_manifest((root / MANIFEST).read_text(encoding="utf-8"), platforms, wheels)
+    dist_dir.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="welch_ext_") as staging:
+        stage(root, select_files(ext, root, manifest), text, wheels, Path(staging))
+        run_blender_ext("build", "--source-dir", staging, "--output-dir", str(dist_dir), "--split-platforms")
+    zips = [dist_dir / zip_name(manifest, p) for p in platforms]
+    for path in zips:
+        run_blender_ext("validate", str(path))
+    return zips
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m blender_addon.build", description=__doc__.splitlines()[0])
+    parser.add_argument("--platform", action="append", help="Blender platform, e.g. linux-x64 (repeatable)")
+    parser.add_argument("--dist-dir", type=Path, default=ROOT / "dist", help="output folder (default: dist)")
+    parser.add_argument("--offline", action="store_true", help="fail instead of downloading missing wheels")
+    args = parser.parse_args(argv)
+    try:
+        zips = build(args.platform, args.dist_dir.resolve(), offline=args.offline)
+    except BuildError as ex:
+        print(f"error: {ex}", file=sys.stderr)
+        return 1
+    for path in zips:
+        print(path)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

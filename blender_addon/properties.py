@@ -1,0 +1,141 @@
+"""Scene settings: what the reference and test sides are, how many passes, and how the result is shown.
+
+Only the setup lives here (it is saved with the file); the running job and the last result are module state in
+``state.py`` so nothing transient ends up in the user's file.
+"""
+
+import bpy
+from bpy.props import (
+    BoolProperty,
+    CollectionProperty,
+    EnumProperty,
+    FloatProperty,
+    IntProperty,
+    PointerProperty,
+    StringProperty,
+)
+
+from . import results
+from .runner import MAX_FIRST_SEED
+
+MODES = (
+    (
+        "CURRENT_WITH_OVERRIDES",
+        "Overrides",
+        "This scene against itself with the property overrides below applied to the test side",
+    ),
+    ("TWO_SCENES", "Two Scenes", "One scene of this file as reference, another as test"),
+    ("STATS_FILES", "Statistics Files", "Compare two statistics files already on disk"),
+)
+
+MAP_MODES = (
+    ("MIN", "Smallest P", "Smallest p-value of the three channels of each tile"),
+    ("CHANNEL", "One Channel", "P-values of one colour channel"),
+    ("SQRT", "Square Root", "Square root of the smallest p-value, more colours for small p"),
+    ("LOG10", "Log Scale", "Minus log10 of the smallest p-value, saturating at 1e-8"),
+    ("Q", "Q-Values", "Benjamini-Hochberg q-values of the tiles"),
+    ("SIGNIFICANT", "Significant Only", "Colour only the tiles significant after multiple-testing correction"),
+)
+
+CHANNELS = (("R", "Red", "Red channel"), ("G", "Green", "Green channel"), ("B", "Blue", "Blue channel"))
+
+
+def _refresh_result(_self, context):
+    # Display settings only re-colour the cached comparison; nothing is rendered again.
+    results.refresh(context)
+
+
+class WELCH_BIAS_PG_override(bpy.types.PropertyGroup):
+    text: StringProperty(
+        name="Override",
+        description="Property path relative to the scene or bpy.data and its value, e.g. "
+        "cycles.sample_clamp_indirect=0",
+        default="",
+    )
+    enabled: BoolProperty(name="Enabled", description="Apply this override to the test side", default=True)
+
+
+class WELCH_BIAS_PG_settings(bpy.types.PropertyGroup):
+    mode: EnumProperty(name="Compare", description="What the reference and test sides are", items=MODES)
+    overrides: CollectionProperty(type=WELCH_BIAS_PG_override)
+    reference_scene: PointerProperty(
+        name="Reference Scene", description="Scene rendered as the reference side", type=bpy.types.Scene
+    )
+    test_scene: PointerProperty(name="Test Scene", description="Scene rendered as the test side", type=bpy.types.Scene)
+    reference_file: StringProperty(
+        name="Reference Statistics", description="Statistics file of the reference side", subtype="FILE_PATH"
+    )
+    test_file: StringProperty(
+        name="Test Statistics", description="Statistics file of the test side", subtype="FILE_PATH"
+    )
+    passes: IntProperty(
+        name="Passes",
+        description="Independent renders per side, each with its own seed (the sample size of every test)",
+        default=32,
+        min=2,
+        soft_max=1000,
+    )
+    first_seed: IntProperty(
+        name="First Seed",
+        description="Seed of the first reference pass; the test side continues after the reference seeds",
+        default=0,
+        min=0,
+        max=MAX_FIRST_SEED,
+    )
+    paired: BoolProperty(
+        name="Paired",
+        description="Render both sides with the same seeds and test per-pass differences "
+        "(more sensitive when the change keeps most of the noise)",
+        default=False,
+    )
+    spp: IntProperty(name="Samples per Pass", description="Cycles samples of each pass", default=1, min=1, soft_max=64)
+    tile: IntProperty(
+        name="Tile Size", description="Edge of the square pixel tiles that are tested", default=32, min=2, soft_max=256
+    )
+    device: EnumProperty(
+        name="Device",
+        description="Cycles device of the background renders",
+        items=(("CPU", "CPU", "Render on the CPU"), ("GPU", "GPU", "Render on the GPU set in the preferences")),
+    )
+    alpha: FloatProperty(
+        name="Alpha",
+        description="Significance level of the test (probability of a false alarm on an unbiased renderer)",
+        default=0.01,
+        min=1e-6,
+        max=0.5,
+        precision=4,
+        step=0.1,
+    )
+    map_mode: EnumProperty(
+        name="Map", description="Which values colour the tiles", items=MAP_MODES, update=_refresh_result
+    )
+    channel: EnumProperty(
+        name="Channel", description="Channel shown by the One Channel map", items=CHANNELS, update=_refresh_result
+    )
+    opacity: FloatProperty(
+        name="Opacity",
+        description="Opacity of the p-value map over the mean render",
+        default=0.6,
+        min=0.0,
+        max=1.0,
+        subtype="FACTOR",
+        update=_refresh_result,
+    )
+
+    def enabled_overrides(self) -> list[str]:
+        return [o.text.strip() for o in self.overrides if o.enabled and o.text.strip()]
+
+
+classes = (WELCH_BIAS_PG_override, WELCH_BIAS_PG_settings)
+
+_register_classes, _unregister_classes = bpy.utils.register_classes_factory(classes)
+
+
+def register():
+    _register_classes()
+    bpy.types.Scene.welch_bias = PointerProperty(type=WELCH_BIAS_PG_settings)
+
+
+def unregister():
+    del bpy.types.Scene.welch_bias
+    _unregister_classes()

@@ -1,0 +1,180 @@
+"""What a comparison turns into in Blender: the p-value map over the mean render as an image, and a summary.
+
+The image is built in numpy with ``welch_core`` (tone-mapped mean render, p-value colours blended over it) and
+written into ``bpy.data.images`` in one ``foreach_set``. The summary is a plain dict the panels draw from, so
+``draw()`` never computes.
+"""
+
+from __future__ import annotations
+
+import bpy
+import numpy as np
+
+from . import state
+from ._siblings import welch_core
+
+IMAGE_NAME = "Welch P-Value Map"
+IMAGE_TAG = "welch_bias_result"  # custom property marking images this add-on may overwrite
+HISTOGRAM_BINS = 20
+HISTOGRAM_ROWS = 3
+BLOCKS = " ▁▂▃▄▅▆▇█"  # eighths of a character cell: a histogram drawn with text labels
+TOP_TILES_SHOWN = 5
+DIFFERENCES_SHOWN = 8
+VERDICT_TEXT = {"biased": "Biased", "no_evidence": "No Evidence of Bias", "inconclusive": "Inconclusive"}
+CORE_MAP_MODES = {"MIN": "min", "CHANNEL": "channel", "SQRT": "sqrt", "LOG10": "log10", "Q": "q", "SIGNIFICANT": "min"}
+CHANNEL_INDEX = {"R": 0, "G": 1, "B": 2}
+
+
+def compare_files(reference_path: str, test_path: str, alpha: float):
+    """Load two statistics files and compare them; welch_core's errors carry one-line messages."""
+    reference = welch_core.load_stats(reference_path)
+    test = welch_core.load_stats(test_path)
+    return welch_core.compare(reference, test, alpha=alpha), reference, test
+
+
+def histogram_rows(pvalues, bins: int = HISTOGRAM_BINS, rows: int = HISTOGRAM_ROWS) -> tuple[list[str], float]:
+    """The p-value histogram as ``rows`` lines of block characters (top line first) and the uniform count per bin.
+
+    Bars are scaled to the larger of the highest bin and the uniform expectation, so a flat histogram (what an
+    unbiased renderer gives) looks flat and a spike at small p stands out.
+    """
+    counts, _edges, expected = welch_core.histogram(pvalues, bins=bins)
+    top = max(float(counts.max(initial=0)), expected, 1e-12)
+    eighths = np.rint(counts / top * rows * 8).astype(int)
+    lines = []
+    for row in range(rows - 1, -1, -1):
+        level = np.clip(eighths - row * 8, 0, 8)
+        lines.append("".join(BLOCKS[v] for v in level))
+    return lines, float(expected)
+
+
+def summarize(comparison, reference, test, sources: dict[str, str]) -> dict:
+    """Everything the panel shows, computed once."""
+    summary = comparison.to_json()
+    rows, expected = histogram_rows(comparison.tile_pvalues[comparison.used])
+    summary.update(
+        verdict_text=VERDICT_TEXT.get(comparison.verdict, comparison.verdict),
+        histogram=rows,
+        histogram_expected=expected,
+        top_tiles=summary["top_tiles"][:TOP_TILES_SHOWN],
+        differences=welch_core.info_differences(reference.info, test.info)[:DIFFERENCES_SHOWN],
+        excluded={k: v for k, v in summary["tile_channels"].items() if v and k != "valid"},
+        sources=dict(sources),
+        image="",
+    )
+    return summary
+
+
+def _outline(rgb: np.ndarray, row: int, col: int, tile: int) -> None:
+    """Draw a white-and-black frame (visible on any colour) around one tile, in place, rows top first."""
+    height, width = rgb.shape[:2]
+    y0, x0 = row * tile, col * tile
+    y1, x1 = min(y0 + tile, height) - 1, min(x0 + tile, width) - 1
+    for inset, colour in ((0, 1.0), (1, 0.0)):
+        top, bottom, left, right = y0 + inset, y1 - inset, x0 + inset, x1 - inset
+        if top > bottom or left > right:
+            return
+        rgb[top, left : right + 1] = rgb[bottom, left : right + 1] = colour
+        rgb[top : bottom + 1, left] = rgb[top : bottom + 1, right] = colour
+
+
+def result_rgba(comparison, base_stats, map_mode: str, channel: str, opacity: float, highlight=None) -> np.ndarray:
+    """The result image as float32 RGBA, rows bottom-up (Blender's order), height x width x 4."""
+    height, width, tile = base_stats.height, base_stats.width, base_stats.tile
+    core_mode = CORE_MAP_MODES[map_mode]
+    tiles_rgb = welch_core.pvalue_rgb(comparison, mode=core_mode, channel=CHANNEL_INDEX.get(channel))
+    map_rgb = welch_core.upscale_tiles(tiles_rgb, tile, height, width)
+    shown = comparison.significant if map_mode == "SIGNIFICANT" else comparison.used
+    mask = welch_core.upscale_tiles(shown.astype(np.float32), tile, height, width)
+    mean = base_stats.mean_image
+    base = welch_core.tonemap(mean) if mean is not None else np.full((height, width, 3), 0.5, np.float32)
+    rgb = np.array(welch_core.overlay(base, map_rgb, float(opacity), mask), dtype=np.float32)
+    if highlight is not None:
+        _outline(rgb, highlight[0], highlight[1], tile)
+    rgba = np.concatenate([rgb, np.ones((height, width, 1), np.float32)], axis=2)
+    return np.ascontiguousarray(rgba[::-1])
+
+
+def write_image(rgba: np.ndarray, name: str = IMAGE_NAME) -> bpy.types.Image:
+    """Put the pixels into a float image of ``bpy.data`` (reused when it is ours), colour space Non-Color."""
+    height, width = rgba.shape[:2]
+    image = bpy.data.images.get(name)
+    if image is None or not image.get(IMAGE_TAG):
+        image = bpy.data.images.new(name, width, height, alpha=True, float_buffer=True)
+        image[IMAGE_TAG] = True
+    elif tuple(image.size) != (width, height):
+        image.scale(width, height)
+    # The map is display-referred already (tone-mapped and sRGB-encoded): no view transform on top.
+    image.colorspace_settings.name = "Non-Color"
+    image.pixels.foreach_set(rgba.ravel())
+    image.update()
+    return image
+
+
+def _image_editors(context):
+    screens = [context.screen] if context.screen else []
+    screens += [w.screen for w in context.window_manager.windows if w.screen not in screens]
+    for screen in screens:
+        for area in screen.areas:
+            if area.type == "IMAGE_EDITOR":
+                yield area
+
+
+def show_in_image_editor(context, image) -> bool:
+    """Show ``image`` in an Image Editor: an open one, else the render window Blender opens with F11."""
+    area = next(_image_editors(context), None)
+    if area is None and not bpy.app.background:
+        try:
+            bpy.ops.render.view_show("INVOKE_DEFAULT")
+        except RuntimeError:
+            pass
+        area = next(_image_editors(context), None)
+    if area is None:
+        return False
+    area.spaces.active.image = image
+    area.tag_redraw()
+    return True
+
+
+def frame_tile(context, x: int, y: int, size: int) -> bool:
+    """Put the Image Editor's 2D cursor on a tile's centre and centre the view there, where Blender allows it."""
+    area = next(_image_editors(context), None)
+    if area is None:
+        return False
+    space = area.spaces.active
+    image = space.image
+    if image is None:
+        return False
+    width, height = image.size
+    # The cursor is in pixels (bottom-up) when the editor shows pixel coordinates, else in 0..1 UV units.
+    cx, cy = x + size / 2, height - (y + size / 2)
+    space.cursor_location = (cx, cy) if space.uv_editor.show_pixel_coords else (cx / width, cy / height)
+    region = next((r for r in area.regions if r.type == "WINDOW"), None)
+    try:
+        with context.temp_override(area=area, region=region, space_data=space):
+            bpy.ops.image.view_center_cursor()
+    except RuntimeError:
+        return False  # no drawable region (background mode): the outline in the image still marks the tile
+    area.tag_redraw()
+    return True
+
+
+def store(comparison, reference, test, sources: dict[str, str]) -> dict:
+    """Cache a new comparison for the panels and the display settings."""
+    state.comparison, state.stats, state.highlight = comparison, (reference, test), None
+    state.result = summarize(comparison, reference, test, sources)
+    return state.result
+
+
+def refresh(context) -> bpy.types.Image | None:
+    """Rebuild the result image from the cached comparison with the scene's display settings."""
+    if state.comparison is None or not state.stats:
+        return None
+    settings = context.scene.welch_bias
+    reference, test = state.stats
+    # The test side is the render under suspicion: its mean is the picture under the map.
+    base = test if test.mean_image is not None else reference
+    rgba = result_rgba(state.comparison, base, settings.map_mode, settings.channel, settings.opacity, state.highlight)
+    image = write_image(rgba)
+    state.result["image"] = image.name
+    return image

@@ -1,0 +1,201 @@
+"""Panels in Properties > Render (Cycles) and the Image Editor sidebar, and a progress bar in the status bar.
+
+``draw()`` only reads the scene settings and the cached state (``state.py``); every number shown was computed
+when the run ended.
+"""
+
+import bpy
+
+from . import state
+from .operators import settings_key
+
+VERDICT_ICONS = {"biased": "ERROR", "no_evidence": "CHECKMARK", "inconclusive": "QUESTION"}
+
+
+def _p(value) -> str:
+    return "n/a" if value is None else f"{value:.3g}"
+
+
+def _percent(value) -> str:
+    return "n/a" if value is None or value != value else f"{value * 100:+.1f} %"
+
+
+def draw_overrides(layout, settings) -> None:
+    col = layout.column(align=True)
+    for index, item in enumerate(settings.overrides):
+        row = col.row(align=True)
+        row.prop(item, "enabled", text="")
+        row.prop(item, "text", text="")
+        row.operator("welch_bias.override_remove", text="", icon="X").index = index
+    col.operator("welch_bias.override_add", text="Add Override", icon="ADD")
+
+
+def draw_setup(layout, settings) -> None:
+    layout.prop(settings, "mode")
+    if settings.mode == "STATS_FILES":
+        layout.prop(settings, "reference_file")
+        layout.prop(settings, "test_file")
+        layout.prop(settings, "alpha")
+        return
+    if settings.mode == "TWO_SCENES":
+        layout.prop(settings, "reference_scene")
+        layout.prop(settings, "test_scene")
+    header, body = layout.panel("welch_bias_overrides", default_closed=False)
+    header.label(text=f"Test Side Overrides ({len(settings.overrides)})")
+    if body is not None:
+        draw_overrides(body, settings)
+    col = layout.column()
+    col.prop(settings, "passes")
+    col.prop(settings, "spp")
+    col.prop(settings, "first_seed")
+    col.prop(settings, "paired")
+    col.prop(settings, "tile")
+    col.prop(settings, "device")
+    col.prop(settings, "alpha")
+
+
+def draw_run(layout, context, settings) -> None:
+    session = state.session
+    if state.running():
+        row = layout.row(align=True)
+        row.progress(factor=session.fraction, type="BAR", text=session.status_text())
+        row.operator("welch_bias.cancel", text="", icon="CANCEL")
+        return
+    row = layout.row(align=True)
+    row.scale_y = 1.4
+    text = "Compare Files" if settings.mode == "STATS_FILES" else "Run"
+    row.operator("welch_bias.run", text=text, icon="PLAY")
+    resumable = state.resumable
+    if resumable is not None and settings.mode != "STATS_FILES":
+        if resumable["key"] == settings_key(settings, context.scene):
+            row.operator("welch_bias.run", text="Resume", icon="FILE_REFRESH").resume = True
+    if session is not None and session.state != "FINISHED":
+        layout.label(text=session.status_text(), icon="INFO")
+    if state.last_error:
+        box = layout.box()
+        box.alert = True
+        box.label(text=state.last_error, icon="ERROR")
+
+
+def draw_verdict(layout, result) -> None:
+    box = layout.box()
+    row = box.row()
+    row.alert = result["verdict"] == "biased"
+    row.label(text=result["verdict_text"], icon=VERDICT_ICONS.get(result["verdict"], "NONE"))
+    test = "paired t-test" if result["test"] == "paired" else "Welch's t-test"
+    box.label(text=f"Alpha {result['alpha']:g}, global p {_p(result['p_value'])}, {test}")
+    tiles = result["tiles"]
+    box.label(text=f"Tiles: {tiles['valid']} of {tiles['total']} valid, {tiles['used']} used")
+    box.label(text=f"Significant after correction: {tiles['significant']}")
+    box.label(text=f"Passes: {result['n_ref']} reference, {result['n_test']} test")
+    for reason, count in result["excluded"].items():
+        box.label(text=f"Excluded tile-channels, {reason}: {count}")
+    for note in result["notes"]:
+        box.label(text=note, icon="INFO")
+
+
+def draw_display(layout, settings) -> None:
+    col = layout.column()
+    col.prop(settings, "map_mode")
+    if settings.map_mode == "CHANNEL":
+        col.prop(settings, "channel")
+    col.prop(settings, "opacity", slider=True)
+    col.operator("welch_bias.show_result", icon="IMAGE_DATA")
+
+
+def draw_histogram(layout, result) -> None:
+    col = layout.column(align=True)
+    col.scale_y = 0.6  # rows of block characters touch, so the bars read as one chart
+    for line in result["histogram"]:
+        col.label(text=line)
+    layout.label(text=f"p from 0 to 1; flat at {result['histogram_expected']:.1f} tiles per bin if unbiased")
+
+
+def draw_top_tiles(layout, result) -> None:
+    if not result["top_tiles"]:
+        layout.label(text="No testable tiles")
+        return
+    for tile in result["top_tiles"]:
+        row = layout.row(align=True)
+        text = f"({tile['x']}, {tile['y']}) {tile['channel']} p {_p(tile['pvalue'])}"
+        op = row.operator("welch_bias.frame_tile", text=text, icon="ZOOM_SELECTED")
+        op.row, op.col = tile["row"], tile["col"]
+        row.label(text=f"{_percent(tile['rel_diff'])} [{_percent(tile['ci_low'])}, {_percent(tile['ci_high'])}]")
+
+
+def draw_result(layout, settings) -> None:
+    result = state.result
+    if result is None:
+        layout.label(text="No result yet")
+        return
+    draw_verdict(layout, result)
+    draw_display(layout, settings)
+    for idname, title, draw in (
+        ("welch_bias_histogram", "P-Value Histogram", draw_histogram),
+        ("welch_bias_top_tiles", "Most Significant Tiles", draw_top_tiles),
+    ):
+        header, body = layout.panel(idname, default_closed=False)
+        header.label(text=title)
+        if body is not None:
+            draw(body, result)
+    if result["differences"]:
+        header, body = layout.panel("welch_bias_differences", default_closed=True)
+        header.label(text="Recorded Differences")
+        if body is not None:
+            for line in result["differences"]:
+                body.label(text=line)
+
+
+class WelchBiasPanel:
+    """What both panels draw; subclasses say where."""
+
+    bl_label = "Welch Bias Test"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        settings = context.scene.welch_bias
+        draw_setup(layout, settings)
+        draw_run(layout, context, settings)
+        draw_result(layout, settings)
+
+
+class WELCH_BIAS_PT_render(WelchBiasPanel, bpy.types.Panel):
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "render"
+    COMPAT_ENGINES = {"CYCLES"}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES
+
+
+class WELCH_BIAS_PT_image_editor(WelchBiasPanel, bpy.types.Panel):
+    bl_space_type = "IMAGE_EDITOR"
+    bl_region_type = "UI"
+    bl_category = "Welch"
+
+
+def draw_status(self, _context):
+    """Progress in the status bar while a run goes on, so it is visible from any editor."""
+    if state.running():
+        row = self.layout.row(align=True)
+        row.progress(factor=state.session.fraction, type="BAR", text=state.session.status_text())
+        row.operator("welch_bias.cancel", text="", icon="CANCEL")
+
+
+classes = (WELCH_BIAS_PT_render, WELCH_BIAS_PT_image_editor)
+
+_register_classes, _unregister_classes = bpy.utils.register_classes_factory(classes)
+
+
+def register():
+    _register_classes()
+    bpy.types.STATUSBAR_HT_header.append(draw_status)
+
+
+def unregister():
+    bpy.types.STATUSBAR_HT_header.remove(draw_status)
+    _unregister_classes()

@@ -1,0 +1,425 @@
+"""The add-on inside the bpy module: registration, settings, checks, operators on statistics files, result image,
+and every panel state drawn through a recording layout."""
+
+import sys
+import tempfile
+import time
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+
+import blender_addon  # noqa: E402
+import welch_core  # noqa: E402
+from blender_addon import checks, operators, results, runner, state, ui  # noqa: E402
+
+SIZE = 64
+TILE = 16
+
+
+@pytest.fixture(scope="module", autouse=True)
+def addon(tmp_path_factory):
+    # Outside an installed extension the add-on writes its runs under the temporary folder.
+    saved_tempdir = tempfile.tempdir
+    tempfile.tempdir = str(tmp_path_factory.mktemp("addon_tmp"))
+    blender_addon.register()
+    yield
+    blender_addon.unregister()
+    tempfile.tempdir = saved_tempdir
+
+
+@pytest.fixture
+def scene():
+    """A fresh scene with a camera, made the window's scene; removed afterwards."""
+    window = bpy.context.window
+    previous = window.scene
+    new = bpy.data.scenes.new("Welch Test Scene")
+    camera = bpy.data.objects.new("Welch Camera", bpy.data.cameras.new("Welch Camera"))
+    new.collection.objects.link(camera)
+    new.camera = camera
+    new.render.resolution_x = new.render.resolution_y = SIZE
+    new.render.resolution_percentage = 100
+    new.render.engine = "CYCLES"
+    window.scene = new
+    state.clear_result()
+    state.session, state.last_error, state.resumable = None, "", None
+    yield new
+    window.scene = previous
+    bpy.data.scenes.remove(new)
+    bpy.data.objects.remove(camera)
+
+
+def write_stats(path, seeds, bias=0.0, size=SIZE, tile=TILE, seed=0):
+    """Synthetic passes: grey 0.2 with noise; ``bias`` scales the top-left quarter of the test side."""
+    rng = np.random.default_rng(seed)
+    stats = welch_core.TileStats(size, size, tile, 3, welch_core.RunInfo(spp=1, renderer="synthetic"))
+    for s in seeds:
+        image = 0.2 + rng.normal(0.0, 0.05, (size, size, 3))
+        image[: size // 2, : size // 2] *= 1.0 + bias
+        stats.add_pass(image.astype(np.float32), s)
+    welch_core.save_stats(path, stats)
+    return str(path)
+
+
+def read_pixels(image):
+    """The image's pixels as height x width x 4, bottom row first (Blender's order)."""
+    pixels = np.empty(len(image.pixels), np.float32)
+    image.pixels.foreach_get(pixels)
+    return pixels.reshape(image.size[1], image.size[0], 4)
+
+
+# -- a recording stand-in for UILayout -----------------------------------------------------------------------
+
+ICONS = set(bpy.types.UILayout.bl_rna.functions["label"].parameters["icon"].enum_items.keys())
+
+
+class FakeOperatorProperties:
+    """Accepts only the properties the operator really has."""
+
+    def __init__(self, idname):
+        category, name = idname.split(".")
+        self._names = set(getattr(getattr(bpy.ops, category), name).get_rna_type().properties.keys())
+
+    def __setattr__(self, name, value):
+        if not name.startswith("_") and name not in self._names:
+            raise AttributeError(f"operator has no property {name!r}")
+        object.__setattr__(self, name, value)
+
+
+class FakeLayout:
+    """Records every call; sub-layouts share the record. Checks property names, operators and icons."""
+
+    def __init__(self, calls=None):
+        self.calls = [] if calls is None else calls
+
+    def _child(self, kind, **kw):
+        self.calls.append((kind, kw))
+        return FakeLayout(self.calls)
+
+    def row(self, **kw):
+        return self._child("row", **kw)
+
+    def column(self, **kw):
+        return self._child("column", **kw)
+
+    def box(self):
+        return self._child("box")
+
+    def panel(self, idname, default_closed=False):
+        self.calls.append(("panel", {"idname": idname}))
+        return FakeLayout(self.calls), FakeLayout(self.calls)
+
+    def label(self, text="", icon="NONE"):
+        assert icon in ICONS, icon
+        self.calls.append(("label", {"text": text, "icon": icon}))
+
+    def prop(self, data, prop, **kw):
+        assert prop in data.bl_rna.properties.keys(), prop
+        self.calls.append(("prop", {"prop": prop, **kw}))
+
+    def operator(self, idname, text="", icon="NONE"):
+        assert icon in ICONS, icon
+        props = FakeOperatorProperties(idname)
+        self.calls.append(("operator", {"idname": idname, "text": text, "props": props}))
+        return props
+
+    def progress(self, factor=0.0, type="BAR", text=""):
+        assert 0.0 <= factor <= 1.0 and type in {"BAR", "RING"}
+        self.calls.append(("progress", {"factor": factor, "text": text}))
+
+    def texts(self):
+        return [kw["text"] for kind, kw in self.calls if kind == "label"]
+
+    def operators(self):
+        return [kw for kind, kw in self.calls if kind == "operator"]
+
+
+def draw_panel():
+    layout = FakeLayout()
+    ui.WelchBiasPanel.draw(SimpleNamespace(layout=layout), bpy.context)
+    return layout
+
+
+# -- registration and settings -------------------------------------------------------------------------------
+
+
+def test_register_and_unregister_twice():
+    for _ in range(2):
+        blender_addon.unregister()
+        assert not hasattr(bpy.types.Scene, "welch_bias")
+        assert not hasattr(bpy.types, "WELCH_BIAS_PT_render")
+        blender_addon.register()
+        assert hasattr(bpy.types.Scene, "welch_bias")
+        assert bpy.ops.welch_bias.run.idname() == "WELCH_BIAS_OT_run"
+        assert ui.draw_status in bpy.types.STATUSBAR_HT_header._dyn_ui_initialize()
+
+
+def test_settings_defaults_and_limits(scene):
+    settings = scene.welch_bias
+    assert (settings.mode, settings.passes, settings.tile) == ("CURRENT_WITH_OVERRIDES", 32, 32)
+    assert operators.alpha_of(settings) == 0.01  # a single-precision property, rounded before use
+    settings.passes = 1
+    settings.alpha = 0.9
+    settings.opacity = 2.0
+    assert (settings.passes, settings.alpha, settings.opacity) == (2, 0.5, 1.0)
+    with pytest.raises(TypeError):
+        settings.mode = "current"  # identifiers are upper case
+    bpy.ops.welch_bias.override_add(text=" cycles.blur_glossy=0 ")
+    bpy.ops.welch_bias.override_add(text="")
+    bpy.ops.welch_bias.override_add(text="cycles.caustics_reflective=False")
+    settings.overrides[2].enabled = False
+    assert settings.enabled_overrides() == ["cycles.blur_glossy=0"]
+    bpy.ops.welch_bias.override_remove(index=1)
+    assert [o.text for o in settings.overrides] == [" cycles.blur_glossy=0 ", "cycles.caustics_reflective=False"]
+    with pytest.raises(RuntimeError, match="No override number 5"):
+        bpy.ops.welch_bias.override_remove(index=4)
+
+
+def test_checks_of_the_setup(scene, tmp_path):
+    settings = scene.welch_bias
+    settings.tile = TILE
+    assert checks.setup_problems(settings, scene) == []
+    scene.render.engine = "BLENDER_EEVEE"
+    assert checks.setup_warnings(settings, scene) == [
+        "Scene 'Welch Test Scene' uses BLENDER_EEVEE: the passes are rendered with Cycles",
+        "No overrides: both sides render the same settings (a check of the test itself)",
+    ]
+    settings.tile = 128
+    assert checks.setup_problems(settings, scene) == [
+        "Tile size 128 exceeds the render size 64x64 of scene 'Welch Test Scene'"
+    ]
+    settings.tile = TILE
+    settings.mode = "TWO_SCENES"
+    assert checks.setup_problems(settings, scene) == ["Choose the reference scene", "Choose the test scene"]
+    other = bpy.data.scenes.new("Welch Other")
+    try:
+        other.render.resolution_x, other.render.resolution_y = 32, 64
+        settings.reference_scene, settings.test_scene = scene, other
+        assert checks.setup_problems(settings, scene) == [
+            "Scene 'Welch Other' has no camera",
+            "The reference and test scenes render at different sizes: 64x64 and 32x64",
+        ]
+    finally:
+        settings.test_scene = None
+        bpy.data.scenes.remove(other)
+    settings.mode = "STATS_FILES"
+    settings.reference_file = str(tmp_path / "missing.npz")
+    assert checks.setup_problems(settings, scene) == [
+        f"Reference statistics file not found: {tmp_path / 'missing.npz'}",
+        "Choose the test statistics file",
+    ]
+
+
+def test_override_syntax_is_checked_before_a_run(scene):
+    pytest.importorskip("batch.overrides")
+    assert checks.override_problems(["cycles.sample_clamp_indirect=0", 'lights["Light"].energy=5']) == []
+    problems = checks.override_problems(["no equals sign"])
+    assert len(problems) == 1 and problems[0].startswith("Override 'no equals sign': ")
+    scene.welch_bias.overrides.add().text = "no equals sign"
+    with pytest.raises(RuntimeError, match="Override 'no equals sign'"):
+        bpy.ops.welch_bias.run()
+
+
+def test_run_refuses_a_scene_without_camera(scene):
+    scene.camera = None
+    with pytest.raises(RuntimeError, match="Scene 'Welch Test Scene' has no camera"):
+        bpy.ops.welch_bias.run()
+    assert state.last_error == "Scene 'Welch Test Scene' has no camera"
+    assert state.session is None
+
+
+# -- statistics files, result image --------------------------------------------------------------------------
+
+
+def test_compare_files_builds_the_result_image_and_summary(scene, tmp_path):
+    settings = scene.welch_bias
+    settings.mode = "STATS_FILES"
+    settings.reference_file = write_stats(tmp_path / "ref.npz", range(0, 16), seed=1)
+    settings.test_file = write_stats(tmp_path / "test.npz", range(16, 32), bias=0.3, seed=2)
+    assert bpy.ops.welch_bias.run() == {"FINISHED"}
+    result = state.result
+    assert result["verdict"] == "biased" and result["verdict_text"] == "Biased"
+    assert result["test"] == "welch" and result["tiles"]["total"] == 16
+    assert result["top_tiles"][0]["row"] < 2 and result["top_tiles"][0]["col"] < 2  # the biased quarter
+    assert len(result["histogram"]) == results.HISTOGRAM_ROWS
+    assert all(len(line) == results.HISTOGRAM_BINS for line in result["histogram"])
+
+    image = bpy.data.images[result["image"]]
+    assert tuple(image.size) == (SIZE, SIZE) and image.is_float
+    assert image.colorspace_settings.name == "Non-Color"
+    pixels = read_pixels(image)
+    assert np.all(pixels[..., 3] == 1.0) and pixels[..., :3].std() > 0.01
+    # Rows are bottom-up: the biased top-left quarter (yellow, small p) is in the last rows of the buffer.
+    biased = pixels[SIZE // 2 :, : SIZE // 2, :3].mean(axis=(0, 1))
+    unbiased = pixels[SIZE // 2 :, SIZE // 2 :, :3].mean(axis=(0, 1))
+    assert biased[0] > unbiased[0] + 0.1  # viridis yellow has far more red than violet
+
+    settings.opacity = 0.0  # the update callback re-colours the cached comparison
+    plain = read_pixels(image)
+    assert not np.allclose(plain, pixels)
+    settings.map_mode = "SIGNIFICANT"
+    settings.opacity = 1.0
+    changed = ~np.isclose(plain, read_pixels(image)).all(axis=-1)
+    assert changed[SIZE // 2 :, : SIZE // 2].any() and not changed[: SIZE // 2].any()  # only significant tiles
+
+    settings.map_mode = "CHANNEL"
+    settings.channel = "G"
+    assert bpy.ops.welch_bias.show_result() == {"FINISHED"}
+    assert bpy.ops.welch_bias.frame_tile(row=0, col=1) == {"FINISHED"}
+    framed = read_pixels(image)[::-1]  # top row first
+    assert np.all(framed[0, TILE : 2 * TILE, :3] == 1.0)  # the white outline of tile (0, 1)
+    with pytest.raises(RuntimeError, match="No tile at row 9"):
+        bpy.ops.welch_bias.frame_tile(row=9, col=0)
+
+
+def test_compare_files_without_bias_and_paired(scene, tmp_path):
+    settings = scene.welch_bias
+    settings.mode = "STATS_FILES"
+    settings.reference_file = write_stats(tmp_path / "ref.npz", range(0, 16), seed=3)
+    settings.test_file = write_stats(tmp_path / "test.npz", range(16, 32), seed=4)
+    bpy.ops.welch_bias.run()
+    assert state.result["verdict"] == "no_evidence"
+    settings.test_file = write_stats(tmp_path / "paired.npz", range(0, 16), seed=5)
+    bpy.ops.welch_bias.run()
+    assert state.result["test"] == "paired"
+
+
+def test_result_image_shows_in_an_image_editor(scene, tmp_path):
+    settings = scene.welch_bias
+    settings.mode = "STATS_FILES"
+    settings.reference_file = write_stats(tmp_path / "ref.npz", range(0, 8))
+    settings.test_file = write_stats(tmp_path / "test.npz", range(8, 16))
+    area = next(a for a in bpy.context.screen.areas if a.type != "PROPERTIES")
+    old_type = area.type
+    area.type = "IMAGE_EDITOR"
+    try:
+        bpy.ops.welch_bias.run()
+        assert area.spaces.active.image.name == state.result["image"]
+    finally:
+        area.type = old_type
+
+
+@pytest.mark.parametrize(
+    "make_test, message",
+    [
+        (lambda p: write_stats(p, range(16, 24), size=32), "statistics have different grids"),
+        (lambda p: write_stats(p, range(4, 12)), "the runs share 4 seeds but not all"),
+        (lambda p: (p.write_text("not a statistics file"), str(p))[1], "is not a readable statistics file"),
+    ],
+)
+def test_compare_files_reports_bad_input_in_one_line(scene, tmp_path, make_test, message):
+    settings = scene.welch_bias
+    settings.mode = "STATS_FILES"
+    settings.reference_file = write_stats(tmp_path / "ref.npz", range(0, 8))
+    settings.test_file = make_test(tmp_path / "test.npz")
+    with pytest.raises(RuntimeError, match=message):
+        bpy.ops.welch_bias.run()
+    assert message in state.last_error and "\n" not in state.last_error
+    assert state.result is None
+
+
+def test_result_rgba_is_bottom_up_with_alpha(tmp_path):
+    reference = welch_core.load_stats(write_stats(tmp_path / "r.npz", range(0, 8)))
+    test = welch_core.load_stats(write_stats(tmp_path / "t.npz", range(8, 16), bias=0.5))
+    comparison = welch_core.compare(reference, test, alpha=0.01)
+    rgba = results.result_rgba(comparison, test, "MIN", "R", 1.0)
+    assert rgba.shape == (SIZE, SIZE, 4) and rgba.dtype == np.float32 and rgba.flags.c_contiguous
+    expected = welch_core.upscale_tiles(welch_core.pvalue_rgb(comparison), TILE, SIZE, SIZE)
+    used = welch_core.upscale_tiles(comparison.used, TILE, SIZE, SIZE)
+    np.testing.assert_allclose(rgba[::-1, :, :3][used], expected[used], atol=1e-6)
+
+
+def test_histogram_rows_scale_to_the_highest_bin():
+    rows, expected = results.histogram_rows(np.r_[np.zeros(10), np.linspace(0.15, 0.95, 9)], bins=10, rows=2)
+    assert expected == pytest.approx(1.9)
+    assert rows[0][0] == "█" and rows[1][0] == "█"  # the spike at p = 0 fills both rows
+    assert rows[0][1:] == " " * 9 and set(rows[1][1:]) == {"▂"}  # one per bin: 1/10 of 16 eighths
+
+
+# -- panels --------------------------------------------------------------------------------------------------
+
+
+def test_panel_without_result(scene):
+    texts = draw_panel().texts()
+    assert "No result yet" in texts
+    for mode in ("TWO_SCENES", "STATS_FILES"):
+        scene.welch_bias.mode = mode
+        layout = draw_panel()
+        assert layout.operators()[-1]["idname"] == "welch_bias.run"
+    assert [op["text"] for op in layout.operators()] == ["Compare Files"]
+
+
+def test_panel_with_overrides_and_an_error(scene):
+    bpy.ops.welch_bias.override_add(text="cycles.blur_glossy=0")
+    state.last_error = "Test run failed (exit code 2): override cycles.nope does not resolve"
+    layout = draw_panel()
+    ops = layout.operators()
+    assert ops[0]["idname"] == "welch_bias.override_remove" and ops[0]["props"].index == 0
+    assert state.last_error in layout.texts()
+
+
+def test_panel_and_status_bar_while_running(scene, tmp_path):
+    spec = runner.RunSpec("Reference", "x.blend", str(tmp_path / "r.npz"), "0:4")
+    command = runner.Command([sys.executable, "-c", "import time; time.sleep(60)"], str(tmp_path), {})
+    state.session = runner.Session([spec, spec], [command, command])
+    state.run_context = {"dir": str(tmp_path), "key": ()}
+    try:
+        state.session.poll()
+        layout = draw_panel()
+        progress = [kw for kind, kw in layout.calls if kind == "progress"]
+        assert progress == [{"factor": 0.0, "text": "Reference: starting"}]
+        assert [op["idname"] for op in layout.operators()][-1] == "welch_bias.cancel"
+        status = FakeLayout()
+        ui.draw_status(SimpleNamespace(layout=status), bpy.context)
+        assert [kind for kind, _ in status.calls] == ["row", "progress", "operator"]
+        assert bpy.ops.welch_bias.run.poll() is False
+        started = time.monotonic()
+        assert bpy.ops.welch_bias.cancel() == {"FINISHED"}
+        assert time.monotonic() - started < 5
+    finally:
+        if state.running():
+            state.session.cancel()
+    assert state.session.state == runner.CANCELLED and state.resumable == state.run_context
+    layout = draw_panel()
+    assert "Cancelled" in layout.texts()
+    assert [op["text"] for op in layout.operators()][-1] == "Run"  # other settings: nothing to resume
+    state.resumable["key"] = operators.settings_key(scene.welch_bias, scene)
+    resume = draw_panel().operators()[-1]
+    assert resume["text"] == "Resume" and resume["props"].resume is True
+
+
+@pytest.mark.parametrize("bias, verdict", [(0.3, "Biased"), (0.0, "No Evidence of Bias")])
+def test_panel_with_a_result(scene, tmp_path, bias, verdict):
+    settings = scene.welch_bias
+    settings.mode = "STATS_FILES"
+    settings.reference_file = write_stats(tmp_path / "ref.npz", range(0, 16), seed=6)
+    settings.test_file = write_stats(tmp_path / "test.npz", range(16, 32), bias=bias, seed=7)
+    bpy.ops.welch_bias.run()
+    layout = draw_panel()
+    texts = layout.texts()
+    assert verdict in texts
+    assert any(t.startswith("Alpha 0.01, global p ") for t in texts)
+    assert "Tiles: 16 of 16 valid, 16 used" in texts
+    assert all(line in texts for line in state.result["histogram"])
+    frames = [op for op in layout.operators() if op["idname"] == "welch_bias.frame_tile"]
+    assert len(frames) == results.TOP_TILES_SHOWN
+    assert (frames[0]["props"].row, frames[0]["props"].col) == (
+        state.result["top_tiles"][0]["row"],
+        state.result["top_tiles"][0]["col"],
+    )
+    image_editor = FakeLayout()
+    ui.WELCH_BIAS_PT_image_editor.draw(SimpleNamespace(layout=image_editor), bpy.context)
+    assert image_editor.texts() == texts
+
+
+def test_render_panel_is_for_cycles_only(scene):
+    assert ui.WELCH_BIAS_PT_render.poll(SimpleNamespace(engine="CYCLES"))
+    assert not ui.WELCH_BIAS_PT_render.poll(SimpleNamespace(engine="BLENDER_EEVEE"))
+
+
+def test_user_dir_falls_back_to_a_temporary_folder():
+    path = operators.user_dir()
+    assert path.is_dir() and Path(tempfile.gettempdir()) in path.parents

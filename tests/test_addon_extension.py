@@ -1,0 +1,173 @@
+"""The extension package: manifest consistency, build + validate with the bpy wheel's blender_ext.py, and a
+sandboxed install that enables, disables and re-enables it."""
+
+import json
+import os
+import platform
+import re
+import subprocess
+import sys
+import textwrap
+import tomllib
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from blender_addon import build
+
+ROOT = Path(__file__).resolve().parent.parent
+MANIFEST = tomllib.loads((ROOT / "blender_manifest.toml").read_text(encoding="utf-8"))
+EXTENSION_TOP_LEVEL = {"__init__.py", "blender_manifest.toml", "blender_addon", "welch_core", "batch", "wheels"}
+
+
+def host_platform() -> str:
+    machine = {"x86_64": "x64", "amd64": "x64", "aarch64": "arm64", "arm64": "arm64"}.get(platform.machine().lower())
+    system = {"linux": "linux", "darwin": "macos", "windows": "windows"}.get(platform.system().lower())
+    return f"{system}-{machine}"
+
+
+def test_manifest_version_is_the_package_version():
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["project"]
+    assert MANIFEST["version"] == project["version"]
+
+
+def test_manifest_wheels_are_the_pinned_runtime_dependencies_for_every_platform():
+    pins = {}
+    for requirement in tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["project"]["dependencies"]:
+        name, _, version = requirement.partition("==")
+        pins[name.lower()] = version
+    ext = build.load_blender_ext()
+    for platform_name in MANIFEST["platforms"]:
+        wheels = build.wheels_for(ext, MANIFEST, [platform_name])
+        names = sorted(Path(w).name.split("-")[0] for w in wheels)
+        assert names == ["openexr", "scipy"], platform_name  # numpy is Blender's own; matplotlib is not needed
+        for wheel in wheels:
+            name, version, python_tag, abi_tag = Path(wheel).name.split("-")[:4]
+            assert version == pins[name] and python_tag == abi_tag == "cp311", wheel
+    assert all(w.startswith("./wheels/") for w in MANIFEST["wheels"])
+
+
+def test_manifest_fields_follow_blender_rules():
+    assert re.fullmatch(r"[a-z][a-z0-9_]*", MANIFEST["id"]) and "__" not in MANIFEST["id"]
+    tagline = MANIFEST["tagline"]
+    assert len(tagline) <= 64 and tagline[-1].isalnum()
+    assert MANIFEST["blender_version_min"] == "5.0.0" and MANIFEST["type"] == "add-on"
+    assert MANIFEST["permissions"]["files"]
+
+
+def test_build_rules_select_only_the_extension_packages():
+    files = build.select_files(build.load_blender_ext(), ROOT, MANIFEST)
+    assert {f.split("/")[0] for f in files} <= EXTENSION_TOP_LEVEL
+    assert "__init__.py" in files and "blender_addon/__init__.py" in files and "blender_addon/build.py" not in files
+    assert not [f for f in files if "__pycache__" in f or f.endswith(".pyc")]
+
+
+def test_pip_command_fetches_exactly_the_listed_wheel(tmp_path):
+    command = build.pip_download_command("scipy-1.17.1-cp311-cp311-manylinux_2_27_x86_64.manylinux_2_28_x86_64.whl",
+                                         tmp_path)  # fmt: skip
+    assert command[1:] == [
+        "-m", "pip", "download", "scipy==1.17.1", "--only-binary=:all:", "--no-deps", "--python-version", "3.11",
+        "--implementation", "cp", "--abi", "cp311", "--dest", str(tmp_path),
+        "--platform", "manylinux_2_27_x86_64", "--platform", "manylinux_2_28_x86_64",
+    ]  # fmt: skip
+
+
+def test_limited_manifest_keeps_the_rest():
+    text = (ROOT / "blender_manifest.toml").read_text(encoding="utf-8")
+    limited = tomllib.loads(build.limited_manifest(text, ["linux-x64"], ["./wheels/a-1-cp311-cp311-linux_x86_64.whl"]))
+    assert limited["platforms"] == ["linux-x64"] and limited["wheels"] == ["./wheels/a-1-cp311-cp311-linux_x86_64.whl"]
+    assert {k: v for k, v in limited.items() if k not in ("platforms", "wheels")} == {
+        k: v for k, v in MANIFEST.items() if k not in ("platforms", "wheels")
+    }
+
+
+def test_build_rejects_an_unknown_platform(tmp_path):
+    done = subprocess.run(
+        [sys.executable, "-m", "blender_addon.build", "--platform", "plan9-x64", "--dist-dir", str(tmp_path)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode == 1
+    assert done.stderr.startswith("error: platform 'plan9-x64' is not in the manifest's platforms")
+
+
+INSTALL_SCRIPT = textwrap.dedent(
+    """
+    import json, sys
+    import bpy
+
+    zip_path, ext_id = sys.argv[1], sys.argv[2]
+    module = f"bl_ext.user_default.{ext_id}"
+    report = {}
+
+    def enabled():
+        return module in bpy.context.preferences.addons and hasattr(bpy.types.Scene, "welch_bias")
+
+    bpy.ops.extensions.package_install_files(filepath=zip_path, repo="user_default", enable_on_install=True)
+    report["installed_enabled"] = enabled()
+    siblings = sys.modules[module + ".blender_addon._siblings"]
+    report["addon_module"] = siblings.ADDON_MODULE
+    report["welch_core"] = siblings.welch_core.__name__
+    report["operator"] = bpy.ops.welch_bias.run.idname()
+    prefs = bpy.context.preferences.addons[module].preferences
+    report["prefs"] = [prefs.keep_temporary_files, prefs.runs_to_keep]
+    report["user_dir"] = str(sys.modules[module + ".blender_addon.operators"].user_dir())
+    bpy.ops.preferences.addon_disable(module=module)
+    report["disabled"] = not enabled()
+    bpy.ops.preferences.addon_enable(module=module)
+    report["reenabled"] = enabled()
+    print("REPORT " + json.dumps(report))
+    """
+)
+
+
+@pytest.mark.slow
+def test_extension_builds_validates_and_installs(tmp_path):
+    target = host_platform()
+    if target not in MANIFEST["platforms"]:
+        pytest.skip(f"no wheels for {target} in the manifest")
+    done = subprocess.run(
+        [sys.executable, "-m", "blender_addon.build", "--platform", target, "--dist-dir", str(tmp_path / "dist")],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert done.returncode == 0, done.stderr
+    zip_path = Path(done.stdout.strip())
+    assert zip_path == tmp_path / "dist" / f"{MANIFEST['id']}-{MANIFEST['version']}-{target.replace('-', '_')}.zip"
+    with zipfile.ZipFile(zip_path) as archive:
+        names = archive.namelist()
+        inner = tomllib.loads(archive.read("blender_manifest.toml").decode())
+    assert {n.split("/")[0] for n in names} == EXTENSION_TOP_LEVEL
+    assert not [n for n in names if "__pycache__" in n or n.endswith(".pyc")]
+    assert inner["platforms"] == [target] and inner["build"]["generated"]["platforms"] == [target]
+    assert sorted(n for n in names if n.startswith("wheels/")) == sorted(w[2:] for w in inner["wheels"])
+
+    user = tmp_path / "user"
+    env = dict(os.environ, BLENDER_USER_RESOURCES=str(user))
+    done = subprocess.run(
+        [sys.executable, "-c", INSTALL_SCRIPT, str(zip_path), MANIFEST["id"]],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    lines = [line for line in done.stdout.splitlines() if line.startswith("REPORT ")]
+    assert done.returncode == 0 and lines, done.stdout[-2000:] + done.stderr[-2000:]
+    report = json.loads(lines[-1][len("REPORT ") :])
+    module = f"bl_ext.user_default.{MANIFEST['id']}"
+    assert report == {
+        "installed_enabled": True,
+        "addon_module": module,
+        "welch_core": module + ".welch_core",
+        "operator": "WELCH_BIAS_OT_run",
+        "prefs": [False, 10],
+        "user_dir": report["user_dir"],
+        "disabled": True,
+        "reenabled": True,
+    }
+    assert Path(report["user_dir"]).is_dir() and user in Path(report["user_dir"]).parents
