@@ -6,7 +6,7 @@ when the run ended.
 
 import bpy
 
-from . import state
+from . import runner, state
 from .operators import settings_key
 
 VERDICT_ICONS = {"biased": "ERROR", "no_evidence": "CHECKMARK", "inconclusive": "QUESTION"}
@@ -69,7 +69,7 @@ def draw_run(layout, context, settings) -> None:
     if resumable is not None and settings.mode != "STATS_FILES":
         if resumable["key"] == settings_key(settings, context.scene):
             row.operator("welch_bias.run", text="Resume", icon="FILE_REFRESH").resume = True
-    if session is not None and session.state != "FINISHED":
+    if session is not None and session.state == runner.CANCELLED:
         layout.label(text=session.status_text(), icon="INFO")
     if state.last_error:
         box = layout.box()

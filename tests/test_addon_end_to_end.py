@@ -1,0 +1,102 @@
+"""The whole flow through the operator on the bpy module: set up the corner scene, render both sides with the
+batch tool as subprocesses, and check the verdict, the result image and that the user's file is untouched."""
+
+import hashlib
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+scenes = pytest.importorskip("batch.scenes")
+pytest.importorskip("batch.render")
+pytest.importorskip("batch.overrides")
+
+import blender_addon  # noqa: E402
+from blender_addon import runner, state  # noqa: E402
+
+SIZE = 64  # the corner scene's default resolution
+TILE = 16
+PASSES = 8
+
+
+@pytest.fixture(scope="module")
+def corner(tmp_path_factory):
+    saved_tempdir = tempfile.tempdir
+    tempfile.tempdir = str(tmp_path_factory.mktemp("addon_runs"))
+    blender_addon.register()
+    window = bpy.context.window
+    previous = window.scene
+    scene = scenes.build_scene("corner")  # becomes the window's scene
+    user_file = tmp_path_factory.mktemp("user") / "user.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(user_file))
+    yield scene, user_file
+    window.scene = previous
+    bpy.data.scenes.remove(scene)
+    blender_addon.unregister()
+    tempfile.tempdir = saved_tempdir
+
+
+def _digest(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _settings(scene, overrides):
+    settings = scene.welch_bias
+    settings.mode = "CURRENT_WITH_OVERRIDES"
+    settings.overrides.clear()
+    for text in overrides:
+        settings.overrides.add().text = text
+    settings.passes, settings.spp, settings.tile, settings.first_seed = PASSES, 1, TILE, 0
+    return settings
+
+
+@pytest.mark.slow
+def test_run_renders_both_sides_and_shows_a_biased_map(corner):
+    scene, user_file = corner
+    # Brighter walls on the test side: a plain bias the test must find with a few passes.
+    _settings(scene, [f"{scenes.WALL_COLOR_PATH}=0.3,0.3,0.3,1"])
+    before = _digest(user_file)
+    assert bpy.ops.welch_bias.run() == {"FINISHED"}
+
+    assert state.session.state == runner.FINISHED
+    assert state.result["verdict"] == "biased", state.result
+    assert state.result["n_ref"] == state.result["n_test"] == PASSES
+    assert state.result["tiles"]["total"] == (SIZE // TILE) ** 2
+    image = bpy.data.images[state.result["image"]]
+    assert tuple(image.size) == (SIZE, SIZE)
+    pixels = np.empty(SIZE * SIZE * 4, np.float32)
+    image.pixels.foreach_get(pixels)
+    rgb = pixels.reshape(SIZE, SIZE, 4)[..., :3]
+    assert np.isfinite(rgb).all() and rgb.std() > 0.01 and 0.0 <= rgb.min() and rgb.max() <= 1.0
+
+    run_dir = Path(state.run_context["dir"])
+    assert (run_dir / "reference.npz").is_file() and (run_dir / "test.npz").is_file()
+    assert not (run_dir / "scene.blend").exists()  # the temporary copy is gone
+    assert bpy.data.filepath == str(user_file) and _digest(user_file) == before
+
+
+@pytest.mark.slow
+def test_run_without_changes_finds_no_evidence_paired(corner):
+    scene, _ = corner
+    settings = _settings(scene, [])
+    settings.paired = True
+    try:
+        assert bpy.ops.welch_bias.run() == {"FINISHED"}
+    finally:
+        settings.paired = False
+    # Identical seeds and settings render identical passes: every difference is exactly zero.
+    assert state.result["test"] == "paired"
+    assert state.result["verdict"] in {"no_evidence", "inconclusive"}
+
+
+@pytest.mark.slow
+def test_an_override_that_does_not_resolve_fails_in_one_line(corner):
+    scene, _ = corner
+    _settings(scene, ["cycles.no_such_setting=1"])
+    with pytest.raises(RuntimeError, match=r"Test run failed \(exit code 2\): .*no_such_setting"):
+        bpy.ops.welch_bias.run()
+    assert "\n" not in state.last_error
+    assert state.resumable is not None and Path(state.resumable["reference"]).is_file()
+    assert state.result is None
