@@ -165,7 +165,13 @@ def _effect_figure(plt, path: Path, result: wc.Comparison) -> str:
 
 
 def _fmt_p(p) -> str:
-    return "n/a" if p is None or not np.isfinite(p) else f"{p:.3g}"
+    if p is None or not np.isfinite(p):
+        return "n/a"
+    return "< 1e-300" if p == 0 else f"{p:.3g}"  # p underflows to 0 only far beyond any alpha
+
+
+def _fmt_pct(x) -> str:
+    return "n/a" if x is None else f"{x * 100:+.2f} %"
 
 
 def verdict_line(report: dict) -> str:
@@ -185,7 +191,7 @@ def _html(report: dict) -> str:
     rows = "".join(
         f"<tr><td>{t['x']},{t['y']}</td><td>{t['channel']}</td><td>{_fmt_p(t['pvalue'])}</td>"
         f"<td>{_fmt_p(t['qvalue'])}</td><td>{'yes' if t['significant'] else 'no'}</td>"
-        f"<td>{t['rel_diff'] * 100:+.2f} % [{t['ci_low'] * 100:+.2f}, {t['ci_high'] * 100:+.2f}]</td></tr>"
+        f"<td>{_fmt_pct(t['rel_diff'])} [{_fmt_pct(t['ci_low'])}, {_fmt_pct(t['ci_high'])}]</td></tr>"
         for t in report["top_tiles"]
     )
     notes = "".join(f"<li>{esc(n)}</li>" for n in report["notes"] + [f"differs: {d}" for d in report["differences"]])

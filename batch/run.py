@@ -58,7 +58,7 @@ def prepare_scene(job: RenderJob):
         sampling_pattern=renderer["sampling_pattern"],
         scene=job.scene or os.path.basename(job.blend or scene.name),
         settings=settings,
-        settings_hash=render.settings_hash(settings),
+        settings_hash=render.settings_hash({**settings, "overrides": list(job.overrides)}),
         overrides=tuple(job.overrides),
     )
     return scene, info

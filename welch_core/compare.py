@@ -43,7 +43,7 @@ def seed_relation(ref_seeds, test_seeds) -> str:
 
 def _choose_test(requested: str, relation: str, shared: int) -> str:
     if requested not in TESTS:
-        raise WelchInputError(f"`test` must be one of {TESTS}, got {requested!r}")
+        raise WelchInputError(f"`test_kind` must be one of {TESTS}, got {requested!r}")
     if relation == "overlap":
         raise SeedOverlapError(
             f"the runs share {shared} seeds but not all: the unpaired test needs disjoint seeds and the paired "
@@ -55,9 +55,7 @@ def _choose_test(requested: str, relation: str, shared: int) -> str:
             "invalid; use the paired test"
         )
     if requested == "paired" and relation == "disjoint":
-        raise SeedOverlapError(
-            "the paired test needs the same seeds on both sides, but the seed lists are disjoint"
-        )
+        raise SeedOverlapError("the paired test needs the same seeds on both sides, but the seed lists are disjoint")
     if requested == "auto":
         return "paired" if relation == "identical" else "welch"
     return requested
@@ -141,16 +139,16 @@ class Comparison:
                     "x": int(col * self.tile),
                     "y": int(row * self.tile),
                     "size": self.tile,
-                    "pvalue": float(self.tile_pvalues[row, col]),
-                    "adjusted_pvalue": float(self.global_test.adjusted[row, col]),
-                    "qvalue": float(self.qvalues[row, col]),
+                    "pvalue": _num(self.tile_pvalues[row, col]),
+                    "adjusted_pvalue": _num(self.global_test.adjusted[row, col]),
+                    "qvalue": _num(self.qvalues[row, col]),
                     "significant": bool(self.significant[row, col]),
                     "trusted": bool(self.trusted[row, col]),
                     "channel": "RGB"[ch] if self.pvalues.shape[-1] == 3 else ch,
-                    "rel_diff": float(self.effect.rel_diff[row, col, ch]),
-                    "ci_low": float(self.effect.ci_low[row, col, ch]),
-                    "ci_high": float(self.effect.ci_high[row, col, ch]),
-                    "min_detectable": float(self.effect.min_detectable[row, col, ch]),
+                    "rel_diff": _num(self.effect.rel_diff[row, col, ch]),
+                    "ci_low": _num(self.effect.ci_low[row, col, ch]),
+                    "ci_high": _num(self.effect.ci_high[row, col, ch]),
+                    "min_detectable": _num(self.effect.min_detectable[row, col, ch]),
                 }
             )
         return tiles
@@ -261,9 +259,7 @@ def _decide(ref, test, kind, pvalue_method, alpha, result, suspect, checked) -> 
     p_value = glob.pvalue
     if deterministic:
         verdict, p_value = "biased", 0.0
-        notes.append(
-            f"{deterministic} tile-channels are constant on both sides but differ: a deterministic difference"
-        )
+        notes.append(f"{deterministic} tile-channels are constant on both sides but differ: a deterministic difference")
     elif not used.any():
         verdict = "inconclusive"
         notes.append("no tile can be tested (too few passes, zero variance or non-finite values everywhere)")
@@ -271,9 +267,7 @@ def _decide(ref, test, kind, pvalue_method, alpha, result, suspect, checked) -> 
         verdict = "biased"
     elif untrusted > MAX_UNTRUSTED_SHARE * valid:
         verdict = "inconclusive"
-        notes.append(
-            "too much of the image has non-normal Welch samples: use larger tiles or more spp per pass"
-        )
+        notes.append("too much of the image has non-normal Welch samples: use larger tiles or more spp per pass")
     else:
         verdict = "no_evidence"
     return Comparison(
