@@ -41,8 +41,9 @@ def override_problems(texts: list[str]) -> list[str]:
     for text in texts:
         try:
             parse_override(text)
-        except (ValueError, TypeError, LookupError) as ex:
-            problems.append(f"Override '{text}': {' '.join(str(ex).split())}")
+        except ValueError as ex:
+            reason = " ".join(str(ex).split()).removeprefix(f"--set {text}: ")
+            problems.append(f"Override '{text}': {reason}")
     return problems
 
 

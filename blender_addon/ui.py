@@ -11,6 +11,16 @@ from .operators import settings_key
 
 VERDICT_ICONS = {"biased": "ERROR", "no_evidence": "CHECKMARK", "inconclusive": "QUESTION"}
 
+# Cycles settings that bias the image by design (clamping, Filter Glossy, caustics off, Fast GI), as overrides.
+OVERRIDE_PRESETS = (
+    ("cycles.sample_clamp_indirect=0", "Indirect Light Clamp Off"),
+    ("cycles.sample_clamp_direct=0", "Direct Light Clamp Off"),
+    ("cycles.blur_glossy=0", "Filter Glossy Off"),
+    ("cycles.caustics_reflective=True", "Reflective Caustics On"),
+    ("cycles.caustics_refractive=True", "Refractive Caustics On"),
+    ("cycles.use_fast_gi=False", "Fast GI Off"),
+)
+
 
 def _p(value) -> str:
     return "n/a" if value is None else f"{value:.3g}"
@@ -27,7 +37,9 @@ def draw_overrides(layout, settings) -> None:
         row.prop(item, "enabled", text="")
         row.prop(item, "text", text="")
         row.operator("welch_bias.override_remove", text="", icon="X").index = index
-    col.operator("welch_bias.override_add", text="Add Override", icon="ADD")
+    row = col.row(align=True)
+    row.operator("welch_bias.override_add", text="Add Override", icon="ADD")
+    row.menu("WELCH_BIAS_MT_override_presets", text="", icon="PRESET")
 
 
 def draw_setup(layout, settings) -> None:
@@ -146,6 +158,14 @@ def draw_result(layout, settings) -> None:
                 body.label(text=line)
 
 
+class WELCH_BIAS_MT_override_presets(bpy.types.Menu):
+    bl_label = "Override Presets"
+
+    def draw(self, _context):
+        for text, label in OVERRIDE_PRESETS:
+            self.layout.operator("welch_bias.override_add", text=label).text = text
+
+
 class WelchBiasPanel:
     """What both panels draw; subclasses say where."""
 
@@ -186,7 +206,7 @@ def draw_status(self, _context):
         row.operator("welch_bias.cancel", text="", icon="CANCEL")
 
 
-classes = (WELCH_BIAS_PT_render, WELCH_BIAS_PT_image_editor)
+classes = (WELCH_BIAS_MT_override_presets, WELCH_BIAS_PT_render, WELCH_BIAS_PT_image_editor)
 
 _register_classes, _unregister_classes = bpy.utils.register_classes_factory(classes)
 

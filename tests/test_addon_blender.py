@@ -126,6 +126,10 @@ class FakeLayout:
         self.calls.append(("operator", {"idname": idname, "text": text, "props": props}))
         return props
 
+    def menu(self, menu, text="", icon="NONE"):
+        assert icon in ICONS and issubclass(getattr(bpy.types, menu), bpy.types.Menu), menu
+        self.calls.append(("menu", {"menu": menu}))
+
     def progress(self, factor=0.0, type="BAR", text=""):
         assert 0.0 <= factor <= 1.0 and type in {"BAR", "RING"}
         self.calls.append(("progress", {"factor": factor, "text": text}))
@@ -215,7 +219,7 @@ def test_checks_of_the_setup(scene, tmp_path):
 
 def test_override_syntax_is_checked_before_a_run(scene):
     pytest.importorskip("batch.overrides")
-    assert checks.override_problems(["cycles.sample_clamp_indirect=0", 'lights["Light"].energy=5']) == []
+    assert checks.override_problems(['lights["Light"].energy=5', *(text for text, _ in ui.OVERRIDE_PRESETS)]) == []
     problems = checks.override_problems(["no equals sign"])
     assert len(problems) == 1 and problems[0].startswith("Override 'no equals sign': ")
     scene.welch_bias.overrides.add().text = "no equals sign"
@@ -413,6 +417,15 @@ def test_panel_with_a_result(scene, tmp_path, bias, verdict):
     image_editor = FakeLayout()
     ui.WELCH_BIAS_PT_image_editor.draw(SimpleNamespace(layout=image_editor), bpy.context)
     assert image_editor.texts() == texts
+
+
+def test_override_presets_add_overrides(scene):
+    layout = FakeLayout()
+    ui.WELCH_BIAS_MT_override_presets.draw(SimpleNamespace(layout=layout), bpy.context)
+    presets = [op["props"].text for op in layout.operators()]
+    assert presets == [text for text, _label in ui.OVERRIDE_PRESETS]
+    bpy.ops.welch_bias.override_add(text=presets[0])
+    assert scene.welch_bias.enabled_overrides() == ["cycles.sample_clamp_indirect=0"]
 
 
 def test_render_panel_is_for_cycles_only(scene):

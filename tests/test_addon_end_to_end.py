@@ -78,17 +78,18 @@ def test_run_renders_both_sides_and_shows_a_biased_map(corner):
 
 
 @pytest.mark.slow
-def test_run_without_changes_finds_no_evidence_paired(corner):
+def test_paired_run_detects_a_brighter_light(corner):
     scene, _ = corner
-    settings = _settings(scene, [])
+    # The startup file has a light named "Light" too, so the corner's light data may be "Light.001".
+    light = next(o.data for o in scene.objects if o.type == "LIGHT")
+    settings = _settings(scene, [f'lights["{light.name}"].energy={light.energy * 1.1}'])
     settings.paired = True
     try:
         assert bpy.ops.welch_bias.run() == {"FINISHED"}
     finally:
         settings.paired = False
-    # Identical seeds and settings render identical passes: every difference is exactly zero.
     assert state.result["test"] == "paired"
-    assert state.result["verdict"] in {"no_evidence", "inconclusive"}
+    assert state.result["verdict"] == "biased"
 
 
 @pytest.mark.slow
