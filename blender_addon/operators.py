@@ -4,6 +4,7 @@
 usable) and blocking when called from a script, which is also how it is tested headless.
 """
 
+import atexit
 import sys
 import tempfile
 import time
@@ -330,11 +331,16 @@ class WELCH_BIAS_OT_override_remove(bpy.types.Operator):
         return {"FINISHED"}
 
 
-@persistent
-def _stop_on_load(_filepath):
-    # A run belongs to the file it was started from; loading another file must not leave renders behind.
+def _stop_running() -> None:
+    # A background render must not outlive the Blender that started it (file load, add-on disabled, quit).
     if state.running():
         state.session.cancel()
+
+
+@persistent
+def _stop_on_load(_filepath):
+    # A run belongs to the file it was started from.
+    _stop_running()
     state.session, state.resumable = None, None
     state.clear_result()
 
@@ -354,9 +360,11 @@ _register_classes, _unregister_classes = bpy.utils.register_classes_factory(clas
 def register():
     _register_classes()
     bpy.app.handlers.load_pre.append(_stop_on_load)
+    atexit.register(_stop_running)
 
 
 def unregister():
     _stop_on_load(None)
+    atexit.unregister(_stop_running)
     bpy.app.handlers.load_pre.remove(_stop_on_load)
     _unregister_classes()

@@ -395,6 +395,19 @@ def test_panel_and_status_bar_while_running(scene, tmp_path):
     assert resume["text"] == "Resume" and resume["props"].resume is True
 
 
+def test_disabling_the_addon_stops_a_running_render(scene, tmp_path):
+    spec = runner.RunSpec("Reference", "x.blend", str(tmp_path / "r.npz"), "0:4")
+    command = runner.Command([sys.executable, "-c", "import time; time.sleep(60)"], str(tmp_path), {})
+    session = state.session = runner.Session([spec], [command])
+    session.poll()
+    blender_addon.unregister()
+    try:
+        assert session.state == runner.CANCELLED and session.process.popen.poll() is not None
+        assert state.session is None
+    finally:
+        blender_addon.register()
+
+
 @pytest.mark.parametrize("bias, verdict", [(0.3, "Biased"), (0.0, "No Evidence of Bias")])
 def test_panel_with_a_result(scene, tmp_path, bias, verdict):
     settings = scene.welch_bias
