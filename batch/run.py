@@ -94,8 +94,8 @@ def render_run(job: RenderJob, progress: Progress) -> wc.TileStats:
     stats = _start_stats(job, scene, info)
     todo = [seed for seed in job.seeds if seed not in set(stats.seeds)]
     progress.start(len(job.seeds) - len(todo), job.out)
-    with render.PassRenderer(scene) as renderer, _terminate_as_interrupt():
-        render_passes(renderer, todo, stats, progress, job.on_nan, job.out, job.checkpoint_every)
+    with render.PassRenderer(scene) as renderer, _StopOnTerminate() as stop:
+        render_passes(renderer, todo, stats, progress, job.on_nan, job.out, job.checkpoint_every, stop)
     progress.finished(job.out, stats.n)
     return stats
 
@@ -108,11 +108,17 @@ def render_passes(
     on_nan: str = "stop",
     out: str | None = None,
     checkpoint_every: int = 8,
+    stop=None,
 ) -> None:
-    """Render `seeds` into `stats`; save `out` every `checkpoint_every` passes, at the end and on interruption."""
+    """Render `seeds` into `stats`; save `out` every `checkpoint_every` passes, at the end and on interruption.
+
+    `stop`, if given, is asked between passes whether to stop (raising KeyboardInterrupt, as Ctrl-C does).
+    """
     pending = 0
     try:
         for seed in seeds:
+            if stop is not None and stop.requested:
+                raise KeyboardInterrupt
             start = time.perf_counter()
             image = renderer.render(seed)
             try:
@@ -132,19 +138,23 @@ def render_passes(
             wc.save_stats(out, stats)  # also on Ctrl-C or a failed pass: nothing rendered is lost
 
 
-class _terminate_as_interrupt:
-    """Turn SIGTERM (a cancel from the add-on, a job scheduler) into KeyboardInterrupt, so the checkpoint is written."""
+class _StopOnTerminate:
+    """Note SIGTERM (a cancel from the add-on, a job scheduler) and stop between passes, so the checkpoint is
+    written. Raising from the handler itself could land inside Blender's operator call, which swallows it."""
+
+    def __init__(self):
+        self.requested = False
+        self._old = None
 
     def __enter__(self):
         try:
-            self._old = signal.signal(signal.SIGTERM, self._raise)
+            self._old = signal.signal(signal.SIGTERM, self._note)
         except ValueError:  # not the main thread: leave signals alone
             self._old = None
         return self
 
-    @staticmethod
-    def _raise(_signum, _frame):
-        raise KeyboardInterrupt
+    def _note(self, _signum, _frame):
+        self.requested = True
 
     def __exit__(self, *exc):
         if self._old is not None:
