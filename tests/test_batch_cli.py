@@ -69,8 +69,23 @@ def test_parse_seeds_errors(text, message):
 
 
 def test_blender_arguments_after_dashdash():
-    argv = ["blender", "-b", "scene.blend", "--python-exit-code", "1", "--python", "batch/blender_entry.py", "--",
-            "render", "--seeds", "0:8", "--spp", "2", "--out", "ref.npz"]  # fmt: skip
+    argv = [
+        "blender",
+        "-b",
+        "scene.blend",
+        "--python-exit-code",
+        "1",
+        "--python",
+        "batch/blender_entry.py",
+        "--",
+        "render",
+        "--seeds",
+        "0:8",
+        "--spp",
+        "2",
+        "--out",
+        "ref.npz",
+    ]
     args = cli.build_parser().parse_args(cli.argv_after_dashdash(argv))
     assert args.command == "render" and args.seeds == list(range(8)) and args.spp == 2 and args.blend is None
     assert cli.argv_after_dashdash(["blender", "-b"]) == []

@@ -31,8 +31,24 @@ def batch(*args, check=None) -> subprocess.CompletedProcess:
 
 
 def render(out, seeds, *extra, spp=2) -> subprocess.CompletedProcess:
-    return batch("render", "--scene", "corner", "--resolution", 64, 64, "--tile", 16, "--seeds", seeds,
-                 "--spp", spp, "--out", out, *extra, check=0)  # fmt: skip
+    return batch(
+        "render",
+        "--scene",
+        "corner",
+        "--resolution",
+        64,
+        64,
+        "--tile",
+        16,
+        "--seeds",
+        seeds,
+        "--spp",
+        spp,
+        "--out",
+        out,
+        *extra,
+        check=0,
+    )
 
 
 def grey(value: float) -> str:
@@ -95,8 +111,28 @@ def test_selftest_of_a_rendered_run(reference, tmp_path):
 def test_resume_after_kill(tmp_path):
     """Kill -9 a run mid-way: the checkpoint holds whole passes; --resume renders the rest, no seed twice."""
     out = tmp_path / "run.npz"
-    args = [sys.executable, "-m", "batch", "render", "--scene", "corner", "--resolution", "64", "64", "--tile", "16",
-            "--seeds", "0:400", "--spp", "1", "--checkpoint-every", "4", "--json-progress", "--out", str(out)]  # fmt: skip
+    args = [
+        sys.executable,
+        "-m",
+        "batch",
+        "render",
+        "--scene",
+        "corner",
+        "--resolution",
+        "64",
+        "64",
+        "--tile",
+        "16",
+        "--seeds",
+        "0:400",
+        "--spp",
+        "1",
+        "--checkpoint-every",
+        "4",
+        "--json-progress",
+        "--out",
+        str(out),
+    ]
     proc = subprocess.Popen(args, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
     try:
         for line in proc.stdout:
@@ -109,12 +145,43 @@ def test_resume_after_kill(tmp_path):
     partial = wc.load_stats(out)
     assert 8 <= partial.n < 400 and partial.n % 4 == 0
     assert partial.seeds == list(range(partial.n))
-    done = batch("render", "--scene", "corner", "--resolution", 64, 64, "--tile", 16, "--seeds", "0:20", "--spp", 1,
-                 "--out", out, check=2)  # fmt: skip
+    done = batch(
+        "render",
+        "--scene",
+        "corner",
+        "--resolution",
+        64,
+        64,
+        "--tile",
+        16,
+        "--seeds",
+        "0:20",
+        "--spp",
+        1,
+        "--out",
+        out,
+        check=2,
+    )
     assert "already exists: pass --resume" in done.stderr
     target = max(20, partial.n)
-    batch("render", "--scene", "corner", "--resolution", 64, 64, "--tile", 16, "--seeds", f"0:{target}", "--spp", 1,
-          "--resume", "--out", out, check=0)  # fmt: skip
+    batch(
+        "render",
+        "--scene",
+        "corner",
+        "--resolution",
+        64,
+        64,
+        "--tile",
+        16,
+        "--seeds",
+        f"0:{target}",
+        "--spp",
+        1,
+        "--resume",
+        "--out",
+        out,
+        check=0,
+    )
     resumed = wc.load_stats(out)
     assert resumed.seeds == list(range(target))
     fresh = wc.TileStats.from_sums(resumed.sums, resumed.seeds, 64, 64, 16)
@@ -123,8 +190,26 @@ def test_resume_after_kill(tmp_path):
 
 def test_sigterm_keeps_the_checkpoint(tmp_path):
     out = tmp_path / "run.npz"
-    args = [sys.executable, "-m", "batch", "render", "--scene", "corner", "--resolution", "64", "64",
-            "--seeds", "0:400", "--spp", "1", "--checkpoint-every", "1000", "--json-progress", "--out", str(out)]  # fmt: skip
+    args = [
+        sys.executable,
+        "-m",
+        "batch",
+        "render",
+        "--scene",
+        "corner",
+        "--resolution",
+        "64",
+        "64",
+        "--seeds",
+        "0:400",
+        "--spp",
+        "1",
+        "--checkpoint-every",
+        "1000",
+        "--json-progress",
+        "--out",
+        str(out),
+    ]
     proc = subprocess.Popen(args, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     for line in proc.stdout:
         if line.startswith("{") and json.loads(line).get("done", 0) >= 3:
@@ -138,8 +223,26 @@ def test_sigterm_keeps_the_checkpoint(tmp_path):
 def test_resume_refuses_other_settings(reference, tmp_path):
     copy = tmp_path / "copy.npz"
     copy.write_bytes(reference.read_bytes())
-    done = batch("render", "--scene", "corner", "--resolution", 64, 64, "--tile", 16, "--seeds", "0:30", "--spp", 2,
-                 "--set", "cycles.max_bounces=3", "--resume", "--out", copy, check=2)  # fmt: skip
+    done = batch(
+        "render",
+        "--scene",
+        "corner",
+        "--resolution",
+        64,
+        64,
+        "--tile",
+        16,
+        "--seeds",
+        "0:30",
+        "--spp",
+        2,
+        "--set",
+        "cycles.max_bounces=3",
+        "--resume",
+        "--out",
+        copy,
+        check=2,
+    )
     assert "can't resume" in done.stderr and "other settings" in done.stderr
 
 
