@@ -76,6 +76,12 @@ def read_pixels(image):
 ICONS = set(bpy.types.UILayout.bl_rna.functions["label"].parameters["icon"].enum_items.keys())
 
 
+def check_call(function, **kw):
+    """The keywords must be parameters of UILayout's RNA function, so a call that works here works in Blender."""
+    parameters = set(bpy.types.UILayout.bl_rna.functions[function].parameters.keys())
+    assert set(kw) <= parameters, (function, set(kw) - parameters)
+
+
 class FakeOperatorProperties:
     """Accepts only the properties the operator really has."""
 
@@ -96,6 +102,7 @@ class FakeLayout:
         self.calls = [] if calls is None else calls
 
     def _child(self, kind, **kw):
+        check_call(kind, **kw)
         self.calls.append((kind, kw))
         return FakeLayout(self.calls)
 
@@ -109,6 +116,7 @@ class FakeLayout:
         return self._child("box")
 
     def panel(self, idname, default_closed=False):
+        check_call("panel", idname=idname, default_closed=default_closed)
         self.calls.append(("panel", {"idname": idname}))
         return FakeLayout(self.calls), FakeLayout(self.calls)
 
@@ -117,6 +125,7 @@ class FakeLayout:
         self.calls.append(("label", {"text": text, "icon": icon}))
 
     def prop(self, data, prop, **kw):
+        check_call("prop", **kw)
         assert prop in data.bl_rna.properties.keys(), prop
         self.calls.append(("prop", {"prop": prop, **kw}))
 
