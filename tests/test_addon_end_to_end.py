@@ -3,6 +3,7 @@ batch tool as subprocesses, and check the verdict, the result image and that the
 
 import hashlib
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +15,7 @@ pytest.importorskip("batch.render")
 pytest.importorskip("batch.overrides")
 
 import blender_addon  # noqa: E402
-from blender_addon import runner, state  # noqa: E402
+from blender_addon import operators, runner, state  # noqa: E402
 
 SIZE = 64  # the corner scene's default resolution
 TILE = 16
@@ -101,3 +102,23 @@ def test_an_override_that_does_not_resolve_fails_in_one_line(corner):
     assert "\n" not in state.last_error
     assert state.resumable is not None and Path(state.resumable["reference"]).is_file()
     assert state.result is None
+
+
+@pytest.mark.slow
+def test_cancel_then_resume_completes_the_run(corner):
+    scene, _ = corner
+    settings = _settings(scene, [f"{scenes.WALL_COLOR_PATH}=0.3,0.3,0.3,1"])
+    session = operators.start_session(bpy.context, settings, resume=False)
+    deadline = time.monotonic() + 60
+    while session.poll() == runner.RUNNING and session.progress.done < 1 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert session.state == runner.RUNNING
+    assert bpy.ops.welch_bias.cancel() == {"FINISHED"}
+    run_dir = state.run_context["dir"]
+    assert session.state == runner.CANCELLED and state.resumable["dir"] == run_dir
+    assert not (Path(run_dir) / "scene.blend").exists()
+
+    assert bpy.ops.welch_bias.run(resume=True) == {"FINISHED"}
+    assert state.run_context["dir"] == run_dir  # the same statistics files, continued
+    assert state.result["n_ref"] == state.result["n_test"] == PASSES
+    assert state.result["verdict"] == "biased"
