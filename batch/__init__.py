@@ -1,0 +1,1 @@
+"""Headless batch tool: render Cycles passes with different seeds, compare runs, report bias."""

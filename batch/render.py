@@ -1,0 +1,349 @@
+"""Everything that touches bpy to render passes: open a scene, make it render unbiased passes, render one seed.
+
+A pass is one Cycles render with its own seed, saved as an uncompressed 32-bit EXR into a per-process temporary
+file (in ``/dev/shm`` where it exists) and read back with OpenEXR: the Render Result's pixels are empty in
+background mode (see ``BLENDER_FACTS.md``).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import bpy
+import numpy as np
+import OpenEXR
+
+from .overrides import jsonable
+from .scenes import SCENES, build_scene
+
+DEFAULT_PATTERN = "TABULATED_SOBOL"  # the startup scene's pattern; recorded with every run
+
+
+class RenderSetupError(Exception):
+    """A scene that cannot be rendered (missing or corrupt file, no camera, unknown name...)."""
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Opening and configuring a scene
+
+
+def open_scene(
+    blend_path: str | None, scene_name: str | None = None, blend_scene: str | None = None
+) -> bpy.types.Scene:
+    """Load a .blend file, build a built-in scene into an empty file, or take the file Blender has open.
+
+    Parameters
+    ----------
+    blend_path : str or None
+        A .blend file to open.
+    scene_name : str or None
+        A key of `batch.scenes.SCENES`, built into an empty file; only without `blend_path`.
+    blend_scene : str or None
+        Which scene of the file to use; None takes its active scene.
+
+    Returns
+    -------
+    bpy.types.Scene
+        The scene, active in the window. Its render engine is not changed here (`configure_unbiased` switches
+        to Cycles and reports the switch).
+
+    Raises
+    ------
+    RenderSetupError
+        Missing or unreadable file, unknown scene name, scene without camera, nothing to render.
+    """
+    if blend_path is not None and scene_name is not None:
+        raise RenderSetupError(f"give a .blend file or a built-in scene, not both ({blend_path}, {scene_name!r})")
+    if scene_name is not None:
+        if blend_scene is not None:
+            raise RenderSetupError(f"a built-in scene has no scene {blend_scene!r} to choose")
+        scene = _build_builtin(scene_name)
+    else:
+        if blend_path is not None:
+            _load_blend(blend_path)
+        elif not bpy.data.filepath:  # the bpy module starts without a file; Blender run with a .blend has one
+            raise RenderSetupError(f"no scene to render: give a .blend file or a built-in scene ({', '.join(SCENES)})")
+        scene = _choose_scene(blend_scene)
+    if scene.camera is None:
+        raise RenderSetupError(f"scene {scene.name!r} has no camera")
+    return scene
+
+
+def _build_builtin(name: str) -> bpy.types.Scene:
+    if name not in SCENES:
+        raise RenderSetupError(f"unknown built-in scene {name!r}; choose from {', '.join(SCENES)}")
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    return build_scene(name)
+
+
+def _load_blend(path: str) -> None:
+    if not os.path.isfile(path):
+        raise RenderSetupError(f"{path}: no such file")
+    try:
+        bpy.ops.wm.open_mainfile(filepath=path, load_ui=False)
+    except RuntimeError as error:
+        lines = str(error).strip().splitlines()
+        reason = lines[-1].strip().removeprefix("Error: ") if lines else "unreadable"
+        raise RenderSetupError(f"{path}: cannot open as a .blend file ({reason})") from None
+
+
+def _choose_scene(name: str | None) -> bpy.types.Scene:
+    if name is None:
+        return bpy.context.scene
+    scene = bpy.data.scenes.get(name)
+    if scene is None:
+        names = ", ".join(repr(s.name) for s in bpy.data.scenes)
+        raise RenderSetupError(f"{bpy.data.filepath}: no scene {name!r}; the file has {names}")
+    bpy.context.window.scene = scene
+    return scene
+
+
+def resolution(scene: bpy.types.Scene) -> tuple[int, int]:
+    """Width and height in pixels of the scene's renders (after the resolution percentage)."""
+    render = scene.render
+    scale = render.resolution_percentage / 100
+    return max(int(render.resolution_x * scale), 1), max(int(render.resolution_y * scale), 1)
+
+
+def configure_unbiased(
+    scene: bpy.types.Scene,
+    device: str = "CPU",
+    spp: int = 1,
+    resolution: tuple[int, int] | None = None,
+    sampling_pattern: str = DEFAULT_PATTERN,
+) -> list[dict]:
+    """Set what a pass needs: Cycles, samples, device, no denoising or adaptive sampling, float EXR output.
+
+    The scene's own biased settings (clamping, Filter Glossy, bounces, ...) are left alone: they are what a
+    user tests; ``batch.lint`` reports them.
+
+    Parameters
+    ----------
+    scene : bpy.types.Scene
+    device : str
+        'CPU', 'GPU' (the first backend that has a device) or a backend from `GPU_BACKENDS`.
+    spp : int
+        Samples per pixel per pass.
+    resolution : (int, int) or None
+        Width and height in pixels; None keeps the scene's.
+    sampling_pattern : str
+        Set explicitly because ``scenes.new()`` and the startup file disagree on the default.
+
+    Returns
+    -------
+    list of dict
+        Every value that changed, as ``{"path", "old", "new"}`` with override-style paths, for the run record
+        (e.g. a switch of ``render.engine`` to Cycles).
+    """
+    if spp < 1:
+        raise ValueError(f"`spp` must be a positive integer, got {spp}")
+    changes: list[dict] = []
+    render, cycles = scene.render, scene.cycles
+    _set(changes, render, "render", "engine", "CYCLES")
+    _set_device(changes, scene, device)
+    _set(changes, cycles, "cycles", "samples", spp)
+    _set(changes, cycles, "cycles", "use_layer_samples", "IGNORE")  # a view layer's samples would replace spp
+    _set(changes, cycles, "cycles", "use_denoising", False)
+    for layer in scene.view_layers:
+        _set(changes, layer.cycles, f"view_layers[{json.dumps(layer.name)}].cycles", "use_denoising", False)
+    _set(changes, cycles, "cycles", "use_adaptive_sampling", False)
+    _set(changes, cycles, "cycles", "time_limit", 0.0)
+    _set(changes, cycles, "cycles", "sampling_pattern", sampling_pattern)
+    # A compositor node tree changes the saved image; the sequencer could replace it.
+    _set(changes, render, "render", "use_compositing", False)
+    _set(changes, render, "render", "use_sequencer", False)
+    _set(changes, render, "render", "use_persistent_data", True)
+    _set(changes, render, "render", "use_single_layer", True)  # only the active view layer is saved
+    if resolution is not None:
+        _set(changes, render, "render", "resolution_x", int(resolution[0]))
+        _set(changes, render, "render", "resolution_y", int(resolution[1]))
+    _set(changes, render, "render", "resolution_percentage", 100)
+    _set(changes, render, "render", "use_border", False)
+    image = render.image_settings
+    for name, value in (("file_format", "OPEN_EXR"), ("color_depth", "32"), ("exr_codec", "NONE")):
+        _set(changes, image, "render.image_settings", name, value)
+    _set(changes, image, "render.image_settings", "color_mode", "RGBA")
+    return changes
+
+
+def _set(changes: list[dict], struct, prefix: str, name: str, value) -> None:
+    old = getattr(struct, name)
+    if old != value:
+        setattr(struct, name, value)
+        changes.append({"path": f"{prefix}.{name}", "old": jsonable(old), "new": jsonable(value)})
+
+
+GPU_BACKENDS = ("OPTIX", "CUDA", "HIP", "METAL", "ONEAPI")
+
+
+def _set_device(changes: list[dict], scene: bpy.types.Scene, device: str) -> None:
+    """'CPU'; 'GPU' (the first backend with a device); or a backend name from `GPU_BACKENDS`."""
+    if device == "CPU":
+        _set(changes, scene.cycles, "cycles", "device", "CPU")
+        return
+    if device != "GPU" and device not in GPU_BACKENDS:
+        raise RenderSetupError(f"unknown device {device!r}; use CPU, GPU or one of {', '.join(GPU_BACKENDS)}")
+    prefs = bpy.context.preferences.addons["cycles"].preferences
+    for backend in GPU_BACKENDS if device == "GPU" else (device,):
+        try:
+            prefs.compute_device_type = backend
+        except TypeError:  # a backend this build does not have
+            continue
+        prefs.refresh_devices()
+        gpus = [d for d in prefs.devices if d.type == backend]
+        if gpus:
+            for d in prefs.devices:
+                d.use = d in gpus
+            _set(changes, scene.cycles, "cycles", "device", "GPU")
+            return
+    raise RenderSetupError(f"device {device!r}: Cycles found no GPU")
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Rendering passes
+
+
+def _temp_dir() -> str:
+    shm = "/dev/shm"
+    return shm if os.path.isdir(shm) and os.access(shm, os.W_OK) else tempfile.gettempdir()
+
+
+class PassRenderer:
+    """Render passes of one configured scene, one seed each.
+
+    Use as a context manager: the temporary EXR file is removed on close.
+
+    Parameters
+    ----------
+    scene : bpy.types.Scene
+        A scene prepared with `configure_unbiased`.
+    temp_dir : str, optional
+        Folder for the temporary EXR; defaults to ``/dev/shm`` where writable, else the system temp folder.
+
+    Attributes
+    ----------
+    render_seconds, io_seconds : float
+        Time of the last pass spent in ``render.render()`` and in saving plus reading the EXR.
+    """
+
+    def __init__(self, scene: bpy.types.Scene, temp_dir: str | None = None):
+        self.scene = scene
+        handle, path = tempfile.mkstemp(prefix=f"welch-pass-{os.getpid()}-", suffix=".exr", dir=temp_dir or _temp_dir())
+        os.close(handle)
+        self.path = path
+        self.render_seconds = 0.0
+        self.io_seconds = 0.0
+
+    def render(self, seed: int) -> np.ndarray:
+        """Render one pass with `seed`.
+
+        Returns
+        -------
+        numpy.ndarray
+            H×W×3 float32, scene-linear, top row first, alpha dropped.
+        """
+        self.scene.cycles.seed = seed
+        # Setting scene.cycles.* does not tag the depsgraph: with persistent data Cycles would reuse the old seed.
+        # A 'TIME' refresh re-syncs the integrator without rebuilding the BVH.
+        self.scene.update_tag(refresh={"TIME"})
+        start = time.perf_counter()
+        bpy.ops.render.render(scene=self.scene.name)
+        middle = time.perf_counter()
+        bpy.data.images["Render Result"].save_render(self.path, scene=self.scene)
+        pixels = read_exr_rgb(self.path)
+        self.render_seconds = middle - start
+        self.io_seconds = time.perf_counter() - middle
+        return pixels
+
+    def close(self) -> None:
+        """Remove the temporary file."""
+        Path(self.path).unlink(missing_ok=True)
+
+    def __enter__(self) -> PassRenderer:
+        return self
+
+    def __exit__(self, *_exc) -> None:
+        self.close()
+
+
+def read_exr_rgb(path: str) -> np.ndarray:
+    """Read the R, G, B channels of a single-part EXR as an H×W×3 float32 array, top row first."""
+    channels = OpenEXR.File(path, separate_channels=True).channels()
+    missing = [c for c in "RGB" if c not in channels]
+    if missing:
+        raise ValueError(f"{path}: no channel {', '.join(missing)} (has {', '.join(channels)})")
+    return np.stack([channels[c].pixels for c in "RGB"], axis=-1).astype(np.float32, copy=False)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# What a run records
+
+# Settings that change the converged image (or must match between the two sides of a test), as override paths.
+# Samples and seed are left out: they change the noise, not the converged image, and runs record them anyway.
+_CYCLES_SETTINGS = (
+    "sampling_pattern", "scrambling_distance", "auto_scrambling_distance", "use_adaptive_sampling",
+    "adaptive_threshold", "adaptive_min_samples", "time_limit", "use_denoising", "use_light_tree",
+    "light_sampling_threshold", "min_light_bounces", "min_transparent_bounces", "caustics_reflective",
+    "caustics_refractive", "blur_glossy", "use_guiding", "max_bounces", "diffuse_bounces", "glossy_bounces",
+    "transmission_bounces", "volume_bounces", "transparent_max_bounces", "volume_step_rate", "volume_max_steps",
+    "volume_biased", "sample_clamp_direct", "sample_clamp_indirect", "use_fast_gi", "fast_gi_method",
+    "ao_bounces_render", "pixel_filter_type", "filter_width", "film_exposure", "film_transparent_glass",
+    "film_transparent_roughness", "use_sample_subset", "sample_offset", "sample_subset_length",
+    "use_animated_seed", "use_layer_samples", "texture_limit_render", "dicing_rate", "max_subdivisions",
+    "use_camera_cull", "use_distance_cull",
+)  # fmt: skip
+_RENDER_SETTINGS = (
+    "engine", "resolution_x", "resolution_y", "resolution_percentage", "pixel_aspect_x", "pixel_aspect_y",
+    "film_transparent", "use_motion_blur", "motion_blur_shutter", "motion_blur_position", "use_border",
+    "use_simplify", "simplify_subdivision_render", "simplify_child_particles_render", "simplify_volumes",
+    "use_compositing", "use_sequencer", "use_single_layer",
+)  # fmt: skip
+_VIEW_LAYER_SETTINGS = (
+    "use", "samples", "use_solid", "use_sky", "use_strand", "use_volumes", "use_motion_blur",
+    "material_override", "world_override",
+)  # fmt: skip
+
+
+def scene_settings(scene: bpy.types.Scene) -> dict:
+    """The settings that change the converged image, keyed by override path (``cycles.blur_glossy``).
+
+    Values are JSON-able: enums as identifiers, vectors as lists, data blocks as names (None when unset).
+    """
+    out: dict = {}
+    for struct, prefix, names in (
+        (scene.cycles, "cycles", _CYCLES_SETTINGS),
+        (scene.render, "render", _RENDER_SETTINGS),
+        (scene, "", ("camera", "world", "frame_current")),
+    ):
+        for name in names:
+            if name in struct.bl_rna.properties:  # some properties come and go between versions
+                out[f"{prefix}.{name}".lstrip(".")] = jsonable(getattr(struct, name))
+    for layer in scene.view_layers:
+        prefix = f"view_layers[{json.dumps(layer.name)}]"
+        for name in _VIEW_LAYER_SETTINGS:
+            out[f"{prefix}.{name}"] = jsonable(getattr(layer, name))
+        out[f"{prefix}.cycles.use_denoising"] = layer.cycles.use_denoising
+    return out
+
+
+def settings_hash(settings: dict) -> str:
+    """SHA-256 (hex) of `settings` as sorted, compact JSON."""
+    text = json.dumps(settings, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def renderer_info(scene: bpy.types.Scene, device: str) -> dict:
+    """Which renderer made a run: name, Blender version and build, device, sampling pattern."""
+    build_hash = bpy.app.build_hash
+    return {
+        "renderer": "Cycles",
+        "version": bpy.app.version_string,  # Blender's version: Cycles has none of its own
+        "build_hash": build_hash.decode() if isinstance(build_hash, bytes) else str(build_hash),
+        "device": device,
+        "sampling_pattern": scene.cycles.sampling_pattern,
+    }

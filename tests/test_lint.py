@@ -1,0 +1,78 @@
+"""batch.lint on real scenes: Blender's biased defaults, the unbiased built-in scenes, each rule."""
+
+from __future__ import annotations
+
+import pytest
+
+bpy = pytest.importorskip("bpy")
+
+from batch.lint import BIASED, INFO, NOT_INDEPENDENT, RULES, SEVERITIES, Finding, Rule, lint_scene  # noqa: E402
+from batch.overrides import apply_overrides  # noqa: E402
+from batch.scenes import SCENES, build_scene  # noqa: E402
+
+
+@pytest.fixture
+def factory():
+    """bpy is one global state per process: every test starts from an empty file."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+
+
+def test_factory_scene_has_the_biased_defaults(factory):
+    findings = lint_scene(bpy.context.scene)
+    assert [(f.path, f.value, f.unbiased, f.severity) for f in findings] == [
+        ("cycles.sample_clamp_indirect", 10.0, 0.0, BIASED),
+        ("cycles.blur_glossy", 1.0, 0.0, BIASED),
+        ("cycles.use_denoising", True, False, BIASED),
+        ('view_layers["ViewLayer"].cycles.use_denoising', True, False, BIASED),
+        ("cycles.use_adaptive_sampling", True, False, BIASED),
+    ]
+
+
+@pytest.mark.parametrize("name", sorted(SCENES))
+def test_builtin_scenes_are_clean(factory, name):
+    assert lint_scene(build_scene(name)) == []
+
+
+@pytest.mark.parametrize(
+    ("override", "path", "severity"),
+    [
+        ("cycles.sample_clamp_direct=0.5", "cycles.sample_clamp_direct", BIASED),
+        ("cycles.caustics_reflective=false", "cycles.caustics_reflective", BIASED),
+        ("cycles.caustics_refractive=false", "cycles.caustics_refractive", BIASED),
+        ("cycles.use_fast_gi=true", "cycles.use_fast_gi", BIASED),
+        ("cycles.volume_biased=true", "cycles.volume_biased", BIASED),
+        ("cycles.time_limit=2", "cycles.time_limit", NOT_INDEPENDENT),
+        ("cycles.use_sample_subset=true", "cycles.use_sample_subset", NOT_INDEPENDENT),
+        ("cycles.scrambling_distance=0.1", "cycles.scrambling_distance", INFO),
+        ("cycles.auto_scrambling_distance=true", "cycles.auto_scrambling_distance", INFO),
+        ("cycles.use_animated_seed=true", "cycles.use_animated_seed", INFO),
+        ("cycles.max_bounces=2", "cycles.max_bounces", INFO),
+        ("cycles.diffuse_bounces=1", "cycles.diffuse_bounces", INFO),
+        ("cycles.transparent_max_bounces=0", "cycles.transparent_max_bounces", INFO),
+    ],
+)
+def test_each_rule_fires_on_its_setting(factory, override, path, severity):
+    scene = build_scene("corner")
+    apply_overrides(scene, [override])
+    (finding,) = lint_scene(scene)
+    assert (finding.path, finding.severity) == (path, severity)
+
+
+def test_every_view_layer_is_checked(factory):
+    scene = build_scene("corner")
+    scene.view_layers.new('Layer "2"').cycles.use_denoising = True
+    (finding,) = lint_scene(scene)
+    assert finding.path == 'view_layers["Layer \\"2\\""].cycles.use_denoising'
+
+
+def test_rules_are_well_formed_and_missing_properties_are_skipped(factory):
+    assert {rule.severity for rule in RULES} <= set(SEVERITIES)
+    cycles = bpy.context.scene.cycles.bl_rna.properties
+    assert all(rule.path.rpartition(".")[2] in cycles for rule in RULES if rule.path.startswith("cycles."))
+    ghost = Rule("cycles.no_such_setting", bool, False, BIASED, "a setting of another Blender version")
+    assert lint_scene(bpy.context.scene, (ghost,)) == []
+
+
+def test_finding_format():
+    finding = Finding("cycles.blur_glossy", 1.0, 0.0, BIASED, "blurs")
+    assert finding.format() == "biased          cycles.blur_glossy = 1.0 (unbiased: 0.0): blurs"

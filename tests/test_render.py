@@ -1,0 +1,212 @@
+"""batch.render and batch.scenes with real Cycles (bpy module): opening scenes, unbiased settings, passes, records."""
+
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+
+from batch import render  # noqa: E402
+from batch.overrides import apply_overrides, parse_override  # noqa: E402
+from batch.scenes import SCENES, WALL_COLOR_PATH, build_scene  # noqa: E402
+
+SIZE = 64
+
+
+@pytest.fixture
+def factory():
+    """bpy is one global state per process: every test that builds a scene starts from an empty file."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+
+
+def corner(spp: int = 1):
+    scene = render.open_scene(None, "corner")
+    render.configure_unbiased(scene, spp=spp, resolution=(SIZE, SIZE))
+    return scene
+
+
+# -- scenes ---------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(SCENES))
+def test_every_builtin_scene_renders(factory, name):
+    scene = render.open_scene(None, name)
+    assert scene.name == name and bpy.context.scene == scene and scene.camera is not None
+    render.configure_unbiased(scene, spp=2)
+    with render.PassRenderer(scene) as renderer:
+        image = renderer.render(0)
+    assert image.shape == (SIZE, SIZE, 3) and image.dtype == np.float32
+    assert np.isfinite(image).all() and 0.02 < image.mean() < 2.0
+
+
+def test_build_scene_rejects_unknown_names(factory):
+    with pytest.raises(KeyError, match="unknown built-in scene 'box'; choose from corner, corner_glass, glossy"):
+        build_scene("box")
+
+
+# -- opening scenes -------------------------------------------------------------------------------------------
+
+
+def test_open_scene_errors(factory, tmp_path):
+    missing = tmp_path / "missing.blend"
+    corrupt = tmp_path / "corrupt.blend"
+    corrupt.write_bytes(b"not a blend file" * 64)
+    cases = [
+        ((str(missing),), f"{missing}: no such file"),
+        ((None, "box"), "unknown built-in scene 'box'; choose from corner, corner_glass, glossy"),
+        ((str(missing), "corner"), f"give a .blend file or a built-in scene, not both ({missing}, 'corner')"),
+        ((None, "corner", "Other"), "a built-in scene has no scene 'Other' to choose"),
+        ((None,), "no scene to render: give a .blend file or a built-in scene (corner, corner_glass, glossy)"),
+    ]
+    for args, message in cases:
+        with pytest.raises(render.RenderSetupError) as info:
+            render.open_scene(*args)
+        assert str(info.value) == message
+    with pytest.raises(render.RenderSetupError, match=rf"^{corrupt}: cannot open as a \.blend file \(.+\)$"):
+        render.open_scene(str(corrupt))
+
+
+def test_open_scene_from_file_chooses_scenes_and_needs_a_camera(factory, tmp_path):
+    build_scene("corner")
+    bpy.data.scenes.new("NoCamera")
+    path = str(tmp_path / "two.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    assert render.open_scene(path, None, "corner").name == "corner"
+    assert render.open_scene(None, None, "corner").name == "corner"  # the file Blender has open
+    with pytest.raises(render.RenderSetupError) as info:
+        render.open_scene(path, None, "NoCamera")
+    assert str(info.value) == "scene 'NoCamera' has no camera"
+    with pytest.raises(render.RenderSetupError) as info:
+        render.open_scene(path, None, "Nope")
+    assert str(info.value) == f"{path}: no scene 'Nope'; the file has 'corner', 'NoCamera', 'Scene'"
+
+
+def test_configure_unbiased_records_changes_and_keeps_biased_settings(factory):
+    scene = bpy.context.scene  # the factory scene: EEVEE, denoising and adaptive sampling on, clamp 10
+    changes = render.configure_unbiased(scene, spp=3, resolution=(40, 30))
+    assert {"path": "render.engine", "old": "BLENDER_EEVEE", "new": "CYCLES"} in changes
+    assert {"path": "cycles.use_denoising", "old": True, "new": False} in changes
+    cycles, settings = scene.cycles, scene.render.image_settings
+    assert scene.render.engine == "CYCLES" and cycles.samples == 3 and cycles.device == "CPU"
+    assert not cycles.use_denoising and not scene.view_layers[0].cycles.use_denoising
+    assert not cycles.use_adaptive_sampling and cycles.time_limit == 0 and cycles.sampling_pattern == "TABULATED_SOBOL"
+    assert not scene.render.use_compositing and not scene.render.use_sequencer and scene.render.use_persistent_data
+    assert (settings.file_format, settings.color_depth, settings.exr_codec) == ("OPEN_EXR", "32", "NONE")
+    assert render.resolution(scene) == (40, 30)
+    # What the user tests stays as it is: lint reports it.
+    assert cycles.sample_clamp_indirect == 10.0 and cycles.blur_glossy == 1.0
+    assert render.configure_unbiased(scene, spp=3, resolution=(40, 30)) == []
+    with pytest.raises(ValueError, match="`spp` must be a positive integer, got 0"):
+        render.configure_unbiased(scene, spp=0)
+    with pytest.raises(render.RenderSetupError, match="^unknown device 'TPU'; use CPU, GPU or one of "):
+        render.configure_unbiased(scene, device="TPU")
+
+
+# -- passes ---------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.slow
+def test_seeds_differ_and_repeat_bit_identically_with_persistent_data(factory):
+    scene = corner()
+    assert scene.render.use_persistent_data
+    with render.PassRenderer(scene) as renderer:
+        first, other, again = renderer.render(0), renderer.render(1), renderer.render(0)
+        path = renderer.path
+        assert os.path.isfile(path) and path.startswith("/dev/shm/" if os.path.isdir("/dev/shm") else "")
+    assert not os.path.exists(path)  # removed on close
+    assert (first != other).mean() > 0.5  # the re-seed took effect
+    assert np.array_equal(first, again)
+
+
+@pytest.mark.slow
+def test_a_pass_equals_a_fresh_non_persistent_render_of_the_same_seed(factory):
+    scene = corner()
+    with render.PassRenderer(scene) as renderer:
+        for seed in (3, 4):
+            persistent = renderer.render(seed)  # seed 4 re-uses the synced scene of seed 3
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    fresh = corner()
+    fresh.render.use_persistent_data = False
+    with render.PassRenderer(fresh) as renderer:
+        assert np.array_equal(renderer.render(4), persistent)
+
+
+@pytest.mark.slow
+def test_pass_is_top_row_first_rgb_scene_linear(factory):
+    """An emitter in the top-left quarter of an orthographic view, colour (1, 0.5, 0.25); black elsewhere."""
+    scene = bpy.data.scenes.new("orientation")
+    bpy.context.window.scene = scene
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    camera.data.type, camera.data.ortho_scale = "ORTHO", 2.0
+    camera.location = (0.0, 0.0, 5.0)  # looks down -Z with +Y up in the image
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    mesh = bpy.data.meshes.new("Quad")
+    mesh.from_pydata([(-1, 0, 0), (0, 0, 0), (0, 1, 0), (-1, 1, 0)], [], [(0, 1, 2, 3)])
+    material = bpy.data.materials.new("Emit")
+    nodes = material.node_tree.nodes
+    nodes.clear()
+    emission = nodes.new("ShaderNodeEmission")
+    emission.inputs["Color"].default_value = (1.0, 0.5, 0.25, 1.0)
+    material.node_tree.links.new(emission.outputs[0], nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
+    mesh.materials.append(material)
+    scene.collection.objects.link(bpy.data.objects.new("Quad", mesh))
+    scene.view_settings.view_transform = "AgX"  # a display transform must not reach the saved pass
+    render.configure_unbiased(scene, resolution=(SIZE, SIZE))
+    with render.PassRenderer(scene) as renderer:
+        image = renderer.render(0)
+    half, margin = SIZE // 2, 3  # the pixel filter blurs about a pixel across the edges
+    np.testing.assert_allclose(image[: half - margin, : half - margin], np.broadcast_to([1.0, 0.5, 0.25], (29, 29, 3)))
+    assert np.all(image[half + margin :] == 0) and np.all(image[:, half + margin :] == 0)
+
+
+@pytest.mark.slow
+def test_an_override_changes_the_render(factory):
+    means = []
+    for grey in (0.2, 0.3):
+        scene = corner(spp=4)
+        apply_overrides(scene, [f"{WALL_COLOR_PATH}={grey},{grey},{grey},1"])
+        with render.PassRenderer(scene) as renderer:
+            means.append(float(np.mean([renderer.render(seed).mean() for seed in range(4)])))
+    # Direct light scales with the albedo: 1.5x the grey gives at least 1.4x the mean.
+    assert means[1] > 1.4 * means[0]
+
+
+# -- what a run records ---------------------------------------------------------------------------------------
+
+
+def test_scene_settings_are_json_override_paths_and_hash_changes(factory):
+    scene = corner()
+    settings = render.scene_settings(scene)
+    assert json.loads(json.dumps(settings)) == settings
+    for key in settings:
+        parse_override(f"{key}=0")  # every key is a valid override path
+    assert settings["cycles.sample_clamp_indirect"] == 0.0 and settings["cycles.pixel_filter_type"] == "BLACKMAN_HARRIS"
+    assert (
+        settings["render.resolution_x"] == SIZE and settings['view_layers["ViewLayer"].cycles.use_denoising'] is False
+    )
+    assert settings["camera"] == "Camera" and "cycles.seed" not in settings and "cycles.samples" not in settings
+    digest = render.settings_hash(settings)
+    assert len(digest) == 64 and digest == render.settings_hash(dict(reversed(settings.items())))
+    scene.cycles.blur_glossy = 0.5
+    assert render.settings_hash(render.scene_settings(scene)) != digest
+    scene.cycles.seed = 7  # seeds and samples are recorded elsewhere
+    scene.cycles.blur_glossy = 0.0
+    assert render.settings_hash(render.scene_settings(scene)) == digest
+
+
+def test_renderer_info(factory):
+    info = render.renderer_info(corner(), "CPU")
+    assert info == {
+        "renderer": "Cycles",
+        "version": bpy.app.version_string,
+        "build_hash": info["build_hash"],
+        "device": "CPU",
+        "sampling_pattern": "TABULATED_SOBOL",
+    }
+    assert json.dumps(info)
