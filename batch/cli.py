@@ -92,7 +92,7 @@ def build_parser() -> argparse.ArgumentParser:
         action="append",
         default=[],
         metavar="RNA.PATH=VALUE",
-        help="property override, repeatable: cycles.sample_clamp_indirect=0, world.color=0.1,0.1,0.1, "
+        help='property override, repeatable: cycles.sample_clamp_indirect=0, lights["Light"].energy=100, '
         'materials["Walls"].node_tree.nodes["Diffuse BSDF"].inputs["Color"].default_value=0.21,0.21,0.21,1',
     )
     r.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")

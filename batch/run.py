@@ -42,11 +42,21 @@ class RenderJob:
     checkpoint_every: int = 8
 
 
-def prepare_scene(job: RenderJob):
-    """Open or build the scene, apply the unbiased render settings and the overrides; return (scene, info)."""
+#: Changes of the pass settings worth telling the user: they make the passes differ from the scene's own renders.
+NOTABLE_CHANGES = ("render.engine", "use_denoising", "use_adaptive_sampling", "time_limit", "use_layer_samples")
+
+
+def prepare_scene(job: RenderJob, warn=None):
+    """Open or build the scene, apply the unbiased render settings and the overrides; return (scene, info).
+
+    `warn`, if given, is called with a message for each notable setting changed for the passes.
+    """
     overrides = [parse_override(text) for text in job.overrides]  # syntax errors before the slow part
     scene = render.open_scene(job.blend, job.scene, job.blend_scene)
-    render.configure_unbiased(scene, job.device, job.spp, job.resolution, job.sampling_pattern)
+    changes = render.configure_unbiased(scene, job.device, job.spp, job.resolution, job.sampling_pattern)
+    for change in changes:
+        if warn is not None and change["path"].endswith(NOTABLE_CHANGES):
+            warn(f"{change['path']} was {change['old']!r} in the scene; passes render with {change['new']!r}")
     apply_overrides(scene, overrides)
     settings = render.scene_settings(scene)
     renderer = render.renderer_info(scene, job.device)
@@ -90,7 +100,7 @@ def render_run(job: RenderJob, progress: Progress) -> wc.TileStats:
     out_dir = os.path.dirname(os.path.abspath(job.out))
     if not os.access(out_dir, os.W_OK):
         raise RunError(f"can't write into {out_dir}: the folder is missing or not writable")
-    scene, info = prepare_scene(job)
+    scene, info = prepare_scene(job, progress.warning)
     stats = _start_stats(job, scene, info)
     todo = [seed for seed in job.seeds if seed not in set(stats.seeds)]
     progress.start(len(job.seeds) - len(todo), job.out)
