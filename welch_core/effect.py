@@ -43,4 +43,5 @@ def effect_sizes(result: TTestResult, ref_mean: np.ndarray, alpha: float, n_test
         detectable = (
             special.stdtrit(result.df, 1.0 - level / 2.0) + special.stdtrit(result.df, DETECTION_POWER)
         ) * (result.standard_error / scale)
-    return Effect(rel, rel - half / scale, rel + half / scale, detectable)
+        low, high = rel - half / scale, rel + half / scale  # a zero reference mean gives inf/NaN, not a warning
+    return Effect(rel, low, high, detectable)

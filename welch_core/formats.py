@@ -95,8 +95,12 @@ def load_stats(path: str | os.PathLike) -> TileStats:
     """Read a statistics file; anything missing, truncated, foreign or of another version raises StatsFileError."""
     name = os.fspath(path)
     try:
-        with np.load(name, allow_pickle=False) as data:
-            arrays = {key: data[key] for key in data.files}
+        loaded = np.load(name, allow_pickle=False)
+        if isinstance(loaded, np.ndarray):  # a plain .npy array, not an archive: rejected below
+            arrays = None
+        else:
+            with loaded as data:
+                arrays = {key: data[key] for key in data.files}
     except FileNotFoundError:
         raise StatsFileError(f"statistics file {name!r} does not exist") from None
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
@@ -144,7 +148,8 @@ def _stats_from_arrays(arrays: dict) -> TileStats:
 def read_exr(path: str | os.PathLike) -> np.ndarray:
     """Read the colour of an EXR file as an H×W×3 float32 array, top row first.
 
-    Takes channels R, G, B, or the first layer's ``<layer>.R/G/B`` (e.g. Blender's ``ViewLayer.Combined.R``).
+    Takes channels R, G, B, else a ``Combined`` layer's ``<layer>.R/G/B`` (Blender's ``ViewLayer.Combined.R``),
+    else the first layer (by name) that has R, G and B.
     """
     import OpenEXR  # imported here: only file-reading code needs it
 
@@ -155,7 +160,9 @@ def read_exr(path: str | os.PathLike) -> np.ndarray:
         channels = OpenEXR.File(name, separate_channels=True).channels()
     except Exception as exc:  # OpenEXR raises bare RuntimeError/Exception for damaged files
         raise WelchInputError(f"{name!r} is not a readable EXR file ({exc})") from None
-    for prefix in [""] + sorted({k.rsplit(".", 1)[0] + "." for k in channels if "." in k}):
+    layers = sorted({k.rsplit(".", 1)[0] + "." for k in channels if "." in k})
+    # A "Combined" layer before any other (Blender's AO, DiffCol, ... passes sort before it by name).
+    for prefix in [""] + sorted(layers, key=lambda layer: not layer.endswith("Combined.")):
         keys = [prefix + c for c in "RGB"]
         if all(k in channels for k in keys):
             return np.stack([channels[k].pixels.astype(np.float32) for k in keys], axis=-1)

@@ -57,7 +57,10 @@ def tile_sums(image: npt.ArrayLike, tile: int, channels: int = 3) -> np.ndarray:
 
     Returns a float64 array of shape (H // tile, W // tile, channels). Extra channels (alpha) are ignored.
     """
+    tile, channels = check_int("tile", tile), check_int("channels", channels)
     image = _check_image(image, channels)
+    if tile > min(image.shape[:2]):
+        raise WelchInputError(f"`tile` must not exceed the image size {image.shape[1]}x{image.shape[0]}, got {tile}")
     ty, tx = image.shape[0] // tile, image.shape[1] // tile
     width = image.shape[1]
     rows = image[: ty * tile].reshape(ty, tile, width * image.shape[2])
@@ -282,9 +285,12 @@ class TileStats:
         out._sums = list(sums)
         out._stacked = sums
         if out.count:
-            # Two-pass moments from the stored sums: as exact as the streaming update.
-            out.mean = sums.mean(axis=0)
-            out.m2 = ((sums - out.mean) ** 2).sum(axis=0)
+            # Two-pass moments from the stored sums, shifted by the first pass: as exact as the streaming update,
+            # and a constant tile gets exactly its value and m2 = 0 (an unshifted mean can be off by an ulp).
+            shifted = sums - sums[0]
+            offset = shifted.mean(axis=0)
+            out.mean = sums[0] + offset
+            out.m2 = ((shifted - offset) ** 2).sum(axis=0)
         return out
 
     def _empty_like(self, keep_mean_image: bool) -> TileStats:
@@ -296,7 +302,7 @@ class TileStats:
             if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
                 raise WelchInputError(f"`seed` must be an integer, got {seed!r}")
             checked.append(int(seed))
-        repeated = sorted(set(checked) & set(self.seeds))
+        repeated = sorted(set(checked) & set(self.seeds)) or sorted(s for s in set(checked) if checked.count(s) > 1)
         if repeated:
             raise WelchInputError(
                 f"seed {repeated[0]} is already in this run: passes must have distinct seeds"

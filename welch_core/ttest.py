@@ -161,7 +161,9 @@ def welch_ttest(
 def paired_ttest(
     a: npt.ArrayLike, b: npt.ArrayLike, axis: int = 0, *, pvalue_method: str = "exact"
 ) -> TTestResult:
-    """Paired t-test on per-pass differences b - a along `axis` (the same seeds on both sides), df = N - 1.
+    """Paired t-test on per-pass differences along `axis` (the same seeds on both sides), df = N - 1.
+
+    The statistic is mean(a - b) / SE like `welch_ttest`; `mean_difference` is mean(b - a), test minus reference.
 
     With common random numbers the noise shared by both sides cancels in the difference, so a small change of
     one setting is found with far fewer passes than by the unpaired test.
@@ -173,7 +175,7 @@ def paired_ttest(
     mean, var, n = _summary(d, axis)
     with np.errstate(divide="ignore", invalid="ignore"):
         se = np.sqrt(var / n)
-        t = mean / se
+        t = -mean / se  # mean(a - b) / se: the sign convention of welch_ttest and scipy's ttest_rel
         df = np.broadcast_to(n - 1.0, t.shape)
     zero = np.zeros_like(mean)
     return _finish(t, df, mean, se, np.broadcast_to(n < 2, t.shape), (zero, zero, mean, var), pvalue_method)
@@ -181,9 +183,16 @@ def paired_ttest(
 
 def _summary(x: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     n = x.shape[axis]
-    mean = x.mean(axis=axis) if n else np.full(np.delete(x.shape, axis), np.nan)
+    if not n:
+        mean = np.full(np.delete(x.shape, axis), np.nan)
+        return mean, np.full(mean.shape, np.nan), np.full(mean.shape, 0.0)
+    # Shift by the first sample: constant samples then give exactly their value and zero variance (numpy's
+    # mean of n equal values can be off by an ulp, which made a constant tile look like a valid test).
+    shift = np.take(x, [0], axis=axis)
+    d = x - shift
+    mean = np.squeeze(shift, axis=axis) + d.mean(axis=axis)
     with np.errstate(invalid="ignore", divide="ignore"):
-        var = x.var(axis=axis, ddof=1) if n > 1 else np.full(mean.shape, np.nan)
+        var = d.var(axis=axis, ddof=1) if n > 1 else np.full(mean.shape, np.nan)
     return mean, var, np.full(mean.shape, float(n))
 
 

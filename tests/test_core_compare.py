@@ -1,0 +1,368 @@
+"""The comparison of two runs and its verdict (welch_core.compare)."""
+
+import json
+import re
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose, assert_array_equal
+
+from welch_core import (
+    TESTS,
+    GridMismatchError,
+    Reason,
+    RunInfo,
+    SeedOverlapError,
+    TileStats,
+    WelchInputError,
+    compare,
+    info_differences,
+    paired_ttest,
+    seed_relation,
+    welch_from_stats,
+)
+
+TILE = 32
+
+
+def tile_sum_samples(rng, n, mean_tiles, shift=None, tile=TILE):
+    """Welch samples of `n` passes: tile sums of per-pixel values with coefficient of variation 1.
+
+    Pixel value = mean * (G_shared + G_channel) / 2 with G ~ Gamma(1/2, 2) (mean 1, variance 2): the shared
+    term correlates R, G and B; the per-pixel CV is exactly 1. The sum of tile² such pixels is drawn exactly as
+    mean * (Gamma(tile²/2, 2)_shared + Gamma(tile²/2, 2)_channel) / 2, so the Welch samples have CV 1 / tile.
+    """
+    mean_tiles = np.asarray(mean_tiles, dtype=float)
+    if shift is not None:
+        mean_tiles = mean_tiles * shift
+    k = tile * tile / 2.0
+    ty, tx, _ = mean_tiles.shape
+    shared = rng.gamma(k, 2.0, size=(n, ty, tx, 1))
+    own = rng.gamma(k, 2.0, size=(n, ty, tx, 3))
+    return mean_tiles * (shared + own) / 2.0
+
+
+def scene_means(ty=8, tx=8):
+    """A smoothly varying per-pixel mean per tile and channel."""
+    y, x = np.mgrid[0:ty, 0:tx]
+    return np.stack([0.2 + x / tx, 0.5 + 0.4 * np.sin(y) ** 2, 1.0 + 0.5 * (x * y) / (tx * ty)], axis=-1)
+
+
+def make_run(sums, seeds, tile=TILE, info=None):
+    ty, tx = sums.shape[1:3]
+    return TileStats.from_sums(sums, list(seeds), ty * tile, tx * tile, tile, info)
+
+
+# -- which test ------------------------------------------------------------------------------------------
+
+
+def test_seed_relation():
+    assert seed_relation([1, 2, 3], [4, 5]) == "disjoint"
+    assert seed_relation([1, 2, 3], [3, 1, 2]) == "identical"
+    assert seed_relation([1, 2, 3], [3, 4]) == "overlap"
+    with pytest.raises(WelchInputError, match=re.escape("seed lists must not be empty")):
+        seed_relation([], [1])
+    with pytest.raises(WelchInputError, match=re.escape("seed lists must not be empty")):
+        seed_relation([1], [])
+
+
+def test_disjoint_seeds_use_welch():
+    rng = np.random.default_rng(31)
+    m = scene_means(3, 4)
+    ref = make_run(tile_sum_samples(rng, 12, m), range(12))
+    test = make_run(tile_sum_samples(rng, 9, m), range(100, 109))
+    for kind in ("auto", "welch"):
+        c = compare(ref, test, test_kind=kind)
+        assert c.test == "welch"
+        expected = welch_from_stats(ref.mean, ref.variance, 12, test.mean, test.variance, 9)
+        assert_allclose(c.pvalues, expected.pvalue, rtol=1e-14)
+        assert_allclose(c.result.df, expected.df, rtol=1e-14)
+        assert (c.n_ref, c.n_test) == (12, 9)
+
+
+def test_identical_seeds_use_the_paired_test_aligned_by_seed():
+    rng = np.random.default_rng(32)
+    m = scene_means(3, 4)
+    common = tile_sum_samples(rng, 10, m)  # the same random numbers on both sides
+    ref_sums = common + rng.normal(0, 1.0, size=common.shape)
+    test_sums = common * 1.001 + rng.normal(0, 1.0, size=common.shape)
+    seeds = [5, 9, 1, 7, 3, 0, 8, 2, 6, 4]
+    order = np.argsort(seeds)  # the test run stores its passes in another order
+    ref = make_run(ref_sums, seeds)
+    test = make_run(test_sums[order], np.array(seeds)[order])
+    assert ref.seeds != test.seeds and set(ref.seeds) == set(test.seeds)
+    for kind in ("auto", "paired"):
+        c = compare(ref, test, test_kind=kind)
+        assert c.test == "paired"
+        expected = paired_ttest(ref_sums, test_sums, axis=0)
+        assert_allclose(c.pvalues, expected.pvalue, rtol=1e-12)
+        assert_allclose(c.result.statistic, expected.statistic, rtol=1e-12)
+        assert_array_equal(c.result.df, np.full(m.shape, 9.0))
+    # misaligned pairing would destroy the shared noise: the aligned test is far more precise
+    assert np.median(c.result.standard_error) < 0.1 * np.median(np.sqrt(ref.variance / 10))
+
+
+def test_overlapping_seeds_refused():
+    rng = np.random.default_rng(33)
+    m = scene_means(2, 2)
+    ref = make_run(tile_sum_samples(rng, 6, m), range(6))
+    test = make_run(tile_sum_samples(rng, 6, m), range(4, 10))
+    msg = (
+        "the runs share 2 seeds but not all: the unpaired test needs disjoint seeds and the paired test identical "
+        "ones; render one run again with a fitting seed range"
+    )
+    for kind in TESTS:
+        with pytest.raises(SeedOverlapError, match=re.escape(msg)):
+            compare(ref, test, test_kind=kind)
+
+
+def test_forced_test_kind_refused_when_seeds_do_not_fit():
+    rng = np.random.default_rng(34)
+    m = scene_means(2, 2)
+    ref = make_run(tile_sum_samples(rng, 6, m), range(6))
+    same = make_run(tile_sum_samples(rng, 6, m), range(6))
+    other = make_run(tile_sum_samples(rng, 6, m), range(6, 12))
+    msg = (
+        "the runs use identical seeds, so their passes are not independent: the unpaired Welch test would be "
+        "invalid; use the paired test"
+    )
+    with pytest.raises(SeedOverlapError, match=re.escape(msg)):
+        compare(ref, same, test_kind="welch")
+    msg = "the paired test needs the same seeds on both sides, but the seed lists are disjoint"
+    with pytest.raises(SeedOverlapError, match=re.escape(msg)):
+        compare(ref, other, test_kind="paired")
+    msg = "`test_kind` must be one of ('auto', 'welch', 'paired'), got 'student'"
+    with pytest.raises(WelchInputError, match=re.escape(msg)):
+        compare(ref, other, test_kind="student")
+
+
+def test_grid_mismatch():
+    rng = np.random.default_rng(35)
+    a = TileStats.from_sums(rng.normal(size=(3, 2, 3, 3)), range(3), 64, 96, 32)
+    b = TileStats.from_sums(rng.normal(size=(3, 4, 6, 3)), range(3, 6), 64, 96, 16)
+    msg = "statistics have different grids (width, height, tile, channels): (96, 64, 32, 3) against (96, 64, 16, 3)"
+    with pytest.raises(GridMismatchError, match=re.escape(msg)):
+        compare(a, b)
+    c = TileStats.from_sums(rng.normal(size=(3, 2, 3, 3)), range(3, 6), 70, 96, 32)  # same tiles, other crop
+    msg = "statistics have different grids (width, height, tile, channels): (96, 64, 32, 3) against (96, 70, 32, 3)"
+    with pytest.raises(GridMismatchError, match=re.escape(msg)):
+        compare(a, c)
+
+
+def test_bad_alpha():
+    rng = np.random.default_rng(36)
+    a = make_run(tile_sum_samples(rng, 3, scene_means(1, 1)), range(3))
+    b = make_run(tile_sum_samples(rng, 3, scene_means(1, 1)), range(3, 6))
+    with pytest.raises(WelchInputError, match=re.escape("`alpha` must be a number in (0, 1), got 0.0")):
+        compare(a, b, alpha=0.0)
+
+
+# -- verdicts ----------------------------------------------------------------------------------------------
+
+
+def test_verdict_no_evidence_under_h0():
+    rng = np.random.default_rng(37)
+    m = scene_means()
+    c = compare(
+        make_run(tile_sum_samples(rng, 40, m), range(40)), make_run(tile_sum_samples(rng, 25, m), range(40, 65))
+    )
+    assert c.verdict == "no_evidence"
+    assert c.p_value > c.alpha == 0.01
+    assert c.n_valid == 64 and c.used.sum() >= 60  # the normality check may drop a tile or two
+    assert not c.significant.any()
+    assert c.reason_counts == {
+        "valid": 192,
+        "too_few_passes": 0,
+        "non_finite": 0,
+        "zero_variance": 0,
+        "deterministic_difference": 0,
+    }
+
+
+def test_verdict_biased_on_a_large_local_bias():
+    rng = np.random.default_rng(38)
+    m = scene_means()
+    shift = np.ones_like(m)
+    shift[5, 2] = 1.2  # one tile 20 % too bright
+    c = compare(
+        make_run(tile_sum_samples(rng, 20, m), range(20)), make_run(tile_sum_samples(rng, 20, m, shift), range(20, 40))
+    )
+    assert c.verdict == "biased"
+    assert c.p_value <= 0.01
+    assert c.significant[5, 2] and c.significant.sum() == 1
+    top = c.top_tiles[0]
+    assert (top["row"], top["col"], top["x"], top["y"], top["size"]) == (5, 2, 64, 160, 32)
+    assert top["significant"] and top["trusted"]
+    assert top["rel_diff"] == pytest.approx(0.2, abs=0.03)
+    assert 0.1 < top["ci_low"] < top["rel_diff"] < top["ci_high"] < 0.3
+
+
+def test_top_tiles_sorted_by_pvalue():
+    rng = np.random.default_rng(39)
+    m = scene_means()
+    shift = 1.0 + 0.02 * rng.uniform(size=m.shape)
+    c = compare(
+        make_run(tile_sum_samples(rng, 30, m), range(30)), make_run(tile_sum_samples(rng, 30, m, shift), range(30, 60))
+    )
+    top = c.top_tiles
+    assert len(top) == 10
+    p = [t["pvalue"] for t in top]
+    assert p == sorted(p)
+    assert p[0] == np.nanmin(c.tile_pvalues)
+    for t in top:
+        assert t["channel"] in ("R", "G", "B")
+        assert t["pvalue"] == c.tile_pvalues[t["row"], t["col"]]
+
+
+def test_verdict_biased_on_a_deterministic_difference():
+    rng = np.random.default_rng(40)
+    m = scene_means(2, 3)
+    ref_sums = tile_sum_samples(rng, 8, m)
+    test_sums = tile_sum_samples(rng, 8, m)
+    ref_sums[:, 1, 1, :] = 0.1 * 1024  # a constant emitter
+    test_sums[:, 1, 1, :] = 0.1 * 1024
+    ref_sums[:, 0, 2, 0] = 0.3 * 1024  # constant on both sides but different
+    test_sums[:, 0, 2, 0] = 0.31 * 1024
+    c = compare(make_run(ref_sums, range(8)), make_run(test_sums, range(8, 16)))
+    assert c.verdict == "biased" and c.p_value == 0.0
+    assert (c.reasons[1, 1] == Reason.ZERO_VARIANCE).all()
+    assert c.reasons[0, 2, 0] == Reason.DETERMINISTIC_DIFFERENCE
+    assert c.reason_counts["zero_variance"] == 3 and c.reason_counts["deterministic_difference"] == 1
+    assert np.isnan(c.tile_pvalues[1, 1]) and np.isfinite(c.tile_pvalues[0, 2])
+    assert any("deterministic difference" in note for note in c.notes)
+
+
+def test_constant_tiles_from_split_runs_stay_zero_variance():
+    """A constant emitter tile stays ZERO_VARIANCE when runs are rebuilt from stored sums (subset, split)."""
+    rng = np.random.default_rng(41)
+    sums = tile_sum_samples(rng, 14, scene_means(2, 2))
+    sums[:, 0, 0, :] = 0.1 * 1024
+    run = make_run(sums, range(14))
+    c = compare(run.subset(range(0, 14, 2)), run.subset(range(1, 14, 2)))
+    assert (c.reasons[0, 0] == Reason.ZERO_VARIANCE).all()
+    assert np.isnan(c.tile_pvalues[0, 0])
+
+
+def test_verdict_inconclusive_without_testable_tiles():
+    black = np.zeros((5, 2, 3, 3))
+    c = compare(make_run(black, range(5)), make_run(black, range(5, 10)))
+    assert c.verdict == "inconclusive" and np.isnan(c.p_value)
+    assert c.reason_counts["zero_variance"] == 18 and c.n_valid == 0
+    assert any("no tile can be tested" in note for note in c.notes)
+    rng = np.random.default_rng(42)
+    m = scene_means(2, 3)
+    c = compare(make_run(tile_sum_samples(rng, 1, m), [0]), make_run(tile_sum_samples(rng, 5, m), range(1, 6)))
+    assert c.verdict == "inconclusive"
+    assert c.reason_counts["too_few_passes"] == 18
+
+
+def test_verdict_inconclusive_when_most_tiles_are_not_normal():
+    """Firefly-like Welch samples in most tiles: the test can't speak for the image."""
+    rng = np.random.default_rng(43)
+    m = scene_means(4, 4)
+    ref_sums = tile_sum_samples(rng, 40, m)
+    test_sums = tile_sum_samples(rng, 40, m)
+    fireflies = rng.uniform(size=(40, 4, 4, 1)) < 0.03  # one pass in 30 catches a very bright path
+    test_sums = test_sums + fireflies * 5000.0
+    c = compare(make_run(ref_sums, range(40)), make_run(test_sums, range(40, 80)))
+    untrusted = (~c.trusted).sum()
+    assert untrusted > 0.25 * 16
+    assert c.verdict == "inconclusive"
+    assert any("non-normal Welch samples" in note for note in c.notes)
+
+
+def test_unchecked_normality_is_noted():
+    rng = np.random.default_rng(44)
+    m = scene_means(2, 2)
+    c = compare(make_run(tile_sum_samples(rng, 5, m), range(5)), make_run(tile_sum_samples(rng, 5, m), range(5, 10)))
+    assert c.trusted.all()
+    assert any("normality of the Welch samples is unchecked" in note for note in c.notes)
+
+
+def test_pvalue_method_is_used():
+    rng = np.random.default_rng(45)
+    m = scene_means(3, 3)
+    ref = make_run(tile_sum_samples(rng, 30, m), range(30))
+    test = make_run(tile_sum_samples(rng, 30, m), range(30, 60))
+    exact, gauss = compare(ref, test), compare(ref, test, pvalue_method="gauss")
+    assert gauss.pvalue_method == "gauss" and "p: gauss" in gauss.method
+    assert not np.array_equal(exact.pvalues, gauss.pvalues)
+    assert_allclose(exact.pvalues, gauss.pvalues, rtol=0.2, atol=1e-3)
+
+
+# -- reports -----------------------------------------------------------------------------------------------
+
+
+def test_to_json_is_strict_json_for_every_verdict():
+    rng = np.random.default_rng(46)
+    m = scene_means(3, 3)
+    ref_sums = tile_sum_samples(rng, 12, m)
+    runs = {
+        "no_evidence": (ref_sums, tile_sum_samples(rng, 12, m)),
+        "biased": (ref_sums, tile_sum_samples(rng, 12, m, 1.3)),
+        "inconclusive": (np.zeros_like(ref_sums), np.zeros_like(ref_sums)),
+    }
+    for verdict, (a, b) in runs.items():
+        c = compare(make_run(a, range(12)), make_run(b, range(12, 24)))
+        assert c.verdict == verdict
+        text = json.dumps(c.to_json(), allow_nan=False)
+        data = json.loads(text)
+        assert data["verdict"] == verdict and data["alpha"] == 0.01
+        assert data["grid"] == {"width": 96, "height": 96, "tile": 32, "tiles_x": 3, "tiles_y": 3}
+        assert data["tiles"]["total"] == 9
+        assert sum(data["tile_channels"].values()) == 27
+        assert data["n_ref"] == data["n_test"] == 12
+        if verdict == "inconclusive":
+            assert data["p_value"] is None and data["top_tiles"] == []
+            assert data["median_min_detectable_rel_bias"] is None
+        else:
+            assert 0.0 <= data["p_value"] <= 1.0
+            assert data["median_min_detectable_rel_bias"] > 0
+
+
+def test_info_differences():
+    a = RunInfo(spp=4, renderer="cycles", settings={"bounces": 8, "clamp": 0.0}, overrides=("x=1",))
+    b = RunInfo(spp=8, renderer="cycles", settings={"bounces": 4, "denoise": True}, overrides=())
+    assert info_differences(a, b) == [
+        "spp: 4 -> 8",
+        "bounces: 8 -> 4",
+        "clamp: 0.0 -> None",
+        "denoise: None -> True",
+        "overrides: ['x=1'] -> []",
+    ]
+    assert info_differences(a, a) == []
+
+
+# -- power -------------------------------------------------------------------------------------------------
+
+
+def test_power_one_percent_shift_of_the_whole_image():
+    """A 1 % too bright image (256x256 px, 8x8 tiles of 32x32, per-pixel CV 1, RGB correlated) is found with
+    N = 40 passes a side (measured power over 100 seeds: 1.00 at N = 40, 0.96 at 30, 0.66 at 20); 5 seeds
+    here, all `biased`. The same runs without the shift give `no_evidence`."""
+    m = scene_means()
+    for seed in range(5):
+        rng = np.random.default_rng(500 + seed)
+        ref = make_run(tile_sum_samples(rng, 40, m), range(40))
+        biased = make_run(tile_sum_samples(rng, 40, m, 1.01), range(40, 80))
+        unbiased = make_run(tile_sum_samples(rng, 40, m), range(80, 120))
+        assert compare(ref, biased).verdict == "biased", seed
+        assert compare(ref, unbiased).verdict == "no_evidence", seed
+
+
+def test_power_one_percent_shift_in_a_region():
+    """A 1 % shift in a 2x2-tile region (64x64 px of a 256x256 image, tiles of 32x32, per-pixel CV 1, so each
+    Welch sample has CV 1/32 and the shift is 0.32 of its standard deviation) is found with N = 400 passes a
+    side (measured power over 100 seeds: 1.00 at N = 400, 0.97 at 250, 0.74 at 200); 5 seeds here, all
+    `biased`, with the significant tiles inside the region."""
+    m = scene_means()
+    shift = np.ones_like(m)
+    shift[2:4, 5:7] = 1.01
+    for seed in range(5):
+        rng = np.random.default_rng(600 + seed)
+        ref = make_run(tile_sum_samples(rng, 400, m), range(400))
+        test = make_run(tile_sum_samples(rng, 400, m, shift), range(400, 800))
+        c = compare(ref, test)
+        assert c.verdict == "biased", seed
+        rows, cols = np.nonzero(c.significant)
+        assert len(rows) and set(rows) <= {2, 3} and set(cols) <= {5, 6}, seed
