@@ -15,9 +15,7 @@ from ._siblings import welch_core
 
 IMAGE_NAME = "Welch P-Value Map"
 IMAGE_TAG = "welch_bias_result"  # custom property marking images this add-on may overwrite
-HISTOGRAM_BINS = 20
-HISTOGRAM_ROWS = 3
-BLOCKS = " ▁▂▃▄▅▆▇█"  # eighths of a character cell: a histogram drawn with text labels
+HISTOGRAM_BINS = 10  # one bar each in the panel
 TOP_TILES_SHOWN = 5
 DIFFERENCES_SHOWN = 8
 VERDICT_TEXT = {"biased": "Biased", "no_evidence": "No Evidence of Bias", "inconclusive": "Inconclusive"}
@@ -32,29 +30,28 @@ def compare_files(reference_path: str, test_path: str, alpha: float):
     return welch_core.compare(reference, test, alpha=alpha), reference, test
 
 
-def histogram_rows(pvalues, bins: int = HISTOGRAM_BINS, rows: int = HISTOGRAM_ROWS) -> tuple[list[str], float]:
-    """The p-value histogram as ``rows`` lines of block characters (top line first) and the uniform count per bin.
+def histogram_bars(pvalues, bins: int = HISTOGRAM_BINS) -> tuple[list[dict], float]:
+    """The p-value histogram as one bar per bin (label, count, fill in [0, 1]) and the uniform count per bin.
 
     Bars are scaled to the larger of the highest bin and the uniform expectation, so a flat histogram (what an
     unbiased renderer gives) looks flat and a spike at small p stands out.
     """
-    counts, _edges, expected = welch_core.histogram(pvalues, bins=bins)
+    counts, edges, expected = welch_core.histogram(pvalues, bins=bins)
     top = max(float(counts.max(initial=0)), expected, 1e-12)
-    eighths = np.rint(counts / top * rows * 8).astype(int)
-    lines = []
-    for row in range(rows - 1, -1, -1):
-        level = np.clip(eighths - row * 8, 0, 8)
-        lines.append("".join(BLOCKS[v] for v in level))
-    return lines, float(expected)
+    bars = [
+        {"label": f"{lo:.1f}-{hi:.1f}", "count": int(count), "fill": float(count / top)}
+        for lo, hi, count in zip(edges[:-1], edges[1:], counts, strict=True)
+    ]
+    return bars, float(expected)
 
 
 def summarize(comparison, reference, test, sources: dict[str, str]) -> dict:
     """Everything the panel shows, computed once."""
     summary = comparison.to_json()
-    rows, expected = histogram_rows(comparison.tile_pvalues[comparison.used])
+    bars, expected = histogram_bars(comparison.tile_pvalues[comparison.used])
     summary.update(
         verdict_text=VERDICT_TEXT.get(comparison.verdict, comparison.verdict),
-        histogram=rows,
+        histogram=bars,
         histogram_expected=expected,
         top_tiles=summary["top_tiles"][:TOP_TILES_SHOWN],
         differences=welch_core.info_differences(reference.info, test.info)[:DIFFERENCES_SHOWN],

@@ -117,10 +117,9 @@ def draw_display(layout, settings) -> None:
 
 def draw_histogram(layout, result) -> None:
     col = layout.column(align=True)
-    col.scale_y = 0.6  # rows of block characters touch, so the bars read as one chart
-    for line in result["histogram"]:
-        col.label(text=line)
-    layout.label(text=f"p from 0 to 1; flat at {result['histogram_expected']:.1f} tiles per bin if unbiased")
+    for bar in result["histogram"]:
+        col.progress(factor=bar["fill"], type="BAR", text=f"p {bar['label']}: {bar['count']}")
+    layout.label(text=f"Flat at {result['histogram_expected']:.1f} tiles per bin if unbiased")
 
 
 def draw_top_tiles(layout, result) -> None:

@@ -257,8 +257,8 @@ def test_compare_files_builds_the_result_image_and_summary(scene, tmp_path):
     assert result["verdict"] == "biased" and result["verdict_text"] == "Biased"
     assert result["test"] == "welch" and result["tiles"]["total"] == 16
     assert result["top_tiles"][0]["row"] < 2 and result["top_tiles"][0]["col"] < 2  # the biased quarter
-    assert len(result["histogram"]) == results.HISTOGRAM_ROWS
-    assert all(len(line) == results.HISTOGRAM_BINS for line in result["histogram"])
+    assert len(result["histogram"]) == results.HISTOGRAM_BINS
+    assert sum(bar["count"] for bar in result["histogram"]) == result["tiles"]["used"]
 
     image = bpy.data.images[result["image"]]
     assert tuple(image.size) == (SIZE, SIZE) and image.is_float
@@ -345,11 +345,11 @@ def test_result_rgba_is_bottom_up_with_alpha(tmp_path):
     np.testing.assert_allclose(rgba[::-1, :, :3][used], expected[used], atol=1e-6)
 
 
-def test_histogram_rows_scale_to_the_highest_bin():
-    rows, expected = results.histogram_rows(np.r_[np.zeros(10), np.linspace(0.15, 0.95, 9)], bins=10, rows=2)
+def test_histogram_bars_scale_to_the_highest_bin():
+    bars, expected = results.histogram_bars(np.r_[np.zeros(10), np.linspace(0.15, 0.95, 9)], bins=10)
     assert expected == pytest.approx(1.9)
-    assert rows[0][0] == "█" and rows[1][0] == "█"  # the spike at p = 0 fills both rows
-    assert rows[0][1:] == " " * 9 and set(rows[1][1:]) == {"▂"}  # one per bin: 1/10 of 16 eighths
+    assert bars[0] == {"label": "0.0-0.1", "count": 10, "fill": 1.0}  # the spike at p = 0 fills its bar
+    assert [bar["count"] for bar in bars[1:]] == [1] * 9 and bars[1]["fill"] == pytest.approx(0.1)
 
 
 # -- panels --------------------------------------------------------------------------------------------------
@@ -429,7 +429,8 @@ def test_panel_with_a_result(scene, tmp_path, bias, verdict):
     assert verdict in texts
     assert any(t.startswith("Alpha 0.01, global p ") for t in texts)
     assert "Tiles: 16 of 16 valid, 16 used" in texts
-    assert all(line in texts for line in state.result["histogram"])
+    bars = [kw["text"] for kind, kw in layout.calls if kind == "progress"]
+    assert bars == [f"p {bar['label']}: {bar['count']}" for bar in state.result["histogram"]]
     frames = [op for op in layout.operators() if op["idname"] == "welch_bias.frame_tile"]
     assert len(frames) == results.TOP_TILES_SHOWN
     assert (frames[0]["props"].row, frames[0]["props"].col) == (

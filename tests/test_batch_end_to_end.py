@@ -22,33 +22,23 @@ ROOT = Path(__file__).resolve().parents[1]
 pytestmark = pytest.mark.slow
 
 
+SMALL = ("--scene", "corner", "--resolution", 64, 64)
+
+
+def command(*args) -> list[str]:
+    return [sys.executable, "-m", "batch", *map(str, args)]
+
+
 def batch(*args, check=None) -> subprocess.CompletedProcess:
     """Run ``python -m batch ARGS`` as a user would, from the repository root."""
-    done = subprocess.run([sys.executable, "-m", "batch", *map(str, args)], cwd=ROOT, capture_output=True, text=True)
+    done = subprocess.run(command(*args), cwd=ROOT, capture_output=True, text=True)
     if check is not None:
         assert done.returncode == check, done.stderr[-3000:]
     return done
 
 
 def render(out, seeds, *extra, spp=2) -> subprocess.CompletedProcess:
-    return batch(
-        "render",
-        "--scene",
-        "corner",
-        "--resolution",
-        64,
-        64,
-        "--tile",
-        16,
-        "--seeds",
-        seeds,
-        "--spp",
-        spp,
-        "--out",
-        out,
-        *extra,
-        check=0,
-    )
+    return batch("render", *SMALL, "--tile", 16, "--seeds", seeds, "--spp", spp, "--out", out, *extra, check=0)
 
 
 def grey(value: float) -> str:
@@ -111,28 +101,21 @@ def test_selftest_of_a_rendered_run(reference, tmp_path):
 def test_resume_after_kill(tmp_path):
     """Kill -9 a run mid-way: the checkpoint holds whole passes; --resume renders the rest, no seed twice."""
     out = tmp_path / "run.npz"
-    args = [
-        sys.executable,
-        "-m",
-        "batch",
+    args = command(
         "render",
-        "--scene",
-        "corner",
-        "--resolution",
-        "64",
-        "64",
+        *SMALL,
         "--tile",
-        "16",
+        16,
         "--seeds",
         "0:400",
         "--spp",
-        "1",
+        1,
         "--checkpoint-every",
-        "4",
+        4,
         "--json-progress",
         "--out",
-        str(out),
-    ]
+        out,
+    )
     proc = subprocess.Popen(args, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
     try:
         for line in proc.stdout:
@@ -145,43 +128,10 @@ def test_resume_after_kill(tmp_path):
     partial = wc.load_stats(out)
     assert 8 <= partial.n < 400 and partial.n % 4 == 0
     assert partial.seeds == list(range(partial.n))
-    done = batch(
-        "render",
-        "--scene",
-        "corner",
-        "--resolution",
-        64,
-        64,
-        "--tile",
-        16,
-        "--seeds",
-        "0:20",
-        "--spp",
-        1,
-        "--out",
-        out,
-        check=2,
-    )
+    done = batch("render", *SMALL, "--tile", 16, "--seeds", "0:20", "--spp", 1, "--out", out, check=2)
     assert "already exists: pass --resume" in done.stderr
     target = max(20, partial.n)
-    batch(
-        "render",
-        "--scene",
-        "corner",
-        "--resolution",
-        64,
-        64,
-        "--tile",
-        16,
-        "--seeds",
-        f"0:{target}",
-        "--spp",
-        1,
-        "--resume",
-        "--out",
-        out,
-        check=0,
-    )
+    batch("render", *SMALL, "--tile", 16, "--seeds", f"0:{target}", "--spp", 1, "--resume", "--out", out, check=0)
     resumed = wc.load_stats(out)
     assert resumed.seeds == list(range(target))
     fresh = wc.TileStats.from_sums(resumed.sums, resumed.seeds, 64, 64, 16)
@@ -190,26 +140,9 @@ def test_resume_after_kill(tmp_path):
 
 def test_sigterm_keeps_the_checkpoint(tmp_path):
     out = tmp_path / "run.npz"
-    args = [
-        sys.executable,
-        "-m",
-        "batch",
-        "render",
-        "--scene",
-        "corner",
-        "--resolution",
-        "64",
-        "64",
-        "--seeds",
-        "0:400",
-        "--spp",
-        "1",
-        "--checkpoint-every",
-        "1000",
-        "--json-progress",
-        "--out",
-        str(out),
-    ]
+    args = command(
+        "render", *SMALL, "--seeds", "0:400", "--spp", 1, "--checkpoint-every", 1000, "--json-progress", "--out", out
+    )
     proc = subprocess.Popen(args, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     for line in proc.stdout:
         if line.startswith("{") and json.loads(line).get("done", 0) >= 3:
@@ -225,11 +158,7 @@ def test_resume_refuses_other_settings(reference, tmp_path):
     copy.write_bytes(reference.read_bytes())
     done = batch(
         "render",
-        "--scene",
-        "corner",
-        "--resolution",
-        64,
-        64,
+        *SMALL,
         "--tile",
         16,
         "--seeds",

@@ -32,37 +32,28 @@ def combine_channels(pvalues: npt.ArrayLike) -> np.ndarray:
         return np.where(k > 0, np.minimum(1.0, k * smallest), np.nan)
 
 
-def holm(pvalues: npt.ArrayLike) -> np.ndarray:
-    """Holm's step-down adjusted p-values (family-wise error under any dependence). NaN stays NaN."""
+def _adjust_sorted(pvalues: npt.ArrayLike, adjust) -> np.ndarray:
+    """Apply `adjust` to the finite p-values in ascending order, cap at 1, and put them back; NaN stays NaN."""
     p = np.asarray(pvalues, dtype=float)
     out = np.full(p.shape, np.nan)
     valid = np.isfinite(p)
-    pv = p[valid]
-    m = pv.size
-    if m:
-        order = np.argsort(pv)
-        adjusted = np.maximum.accumulate((m - np.arange(m)) * pv[order])
-        result = np.empty(m)
-        result[order] = np.minimum(1.0, adjusted)
+    ascending = np.sort(p[valid])
+    if ascending.size:
+        order = np.argsort(p[valid])
+        result = np.empty(ascending.size)
+        result[order] = np.minimum(1.0, adjust(ascending, ascending.size))
         out[valid] = result
     return out
+
+
+def holm(pvalues: npt.ArrayLike) -> np.ndarray:
+    """Holm's step-down adjusted p-values (family-wise error under any dependence). NaN stays NaN."""
+    return _adjust_sorted(pvalues, lambda p, m: np.maximum.accumulate((m - np.arange(m)) * p))
 
 
 def bh_qvalues(pvalues: npt.ArrayLike) -> np.ndarray:
     """Benjamini-Hochberg q-values (false-discovery rate for independent or positively dependent tests)."""
-    p = np.asarray(pvalues, dtype=float)
-    out = np.full(p.shape, np.nan)
-    valid = np.isfinite(p)
-    pv = p[valid]
-    m = pv.size
-    if m:
-        order = np.argsort(pv)
-        scaled = pv[order] * m / np.arange(1, m + 1)
-        q = np.minimum.accumulate(scaled[::-1])[::-1]
-        result = np.empty(m)
-        result[order] = np.minimum(1.0, q)
-        out[valid] = result
-    return out
+    return _adjust_sorted(pvalues, lambda p, m: np.minimum.accumulate((p * m / np.arange(1, m + 1))[::-1])[::-1])
 
 
 def uniformity_pvalue(pvalues: npt.ArrayLike) -> float:
