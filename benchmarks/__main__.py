@@ -1,0 +1,77 @@
+"""Regenerate the benchmark charts, CSVs and README::
+
+    python -m benchmarks                 # everything into docs/benchmarks/ (pools cached in benchmarks/cache/)
+    python -m benchmarks --quick --out /tmp/bench    # tiny pools and few trials: checks the pipeline, not the figures
+    python -m benchmarks --charts 2 4    # some charts only (the others keep their last figures)
+
+Charts: 1 detection rate against render time, 2 p-value methods, 3 stability on unbiased pairs, 4 cost.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import time
+from importlib import metadata
+from pathlib import Path
+
+from . import cost, detection, plan, pvalues, readme, stability
+from .cache import DEFAULT_DIR, REPO
+from .pools import say
+
+CHARTS = {"1": detection, "2": pvalues, "3": stability, "4": cost}
+
+
+def machine() -> dict:
+    """What the figures were measured on."""
+    model = ""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                model = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    versions = {name: metadata.version(name) for name in ("bpy", "numpy", "scipy", "matplotlib")}
+    return {"cores": os.cpu_count(), "cpu": model, "gpu": "none (Cycles on CPU)", "python": platform.python_version(),
+            **versions}  # fmt: skip
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="tiny pools and few trials (CI)")
+    parser.add_argument("--out", type=Path, default=REPO / "docs" / "benchmarks", help="output folder")
+    parser.add_argument("--cache", type=Path, default=DEFAULT_DIR, help="pool and trial cache folder")
+    parser.add_argument("--charts", nargs="+", choices=sorted(CHARTS), default=sorted(CHARTS), help="charts to run")
+    args = parser.parse_args(argv)
+    budget = plan.QUICK if args.quick else plan.FULL
+    args.out.mkdir(parents=True, exist_ok=True)
+    args.cache.mkdir(parents=True, exist_ok=True)
+    figures_path = args.out / "figures.json"
+    figures = json.loads(figures_path.read_text()) if figures_path.exists() else {}
+    if figures.get("quick") != args.quick:
+        figures = {}  # never mix quick and full figures
+    figures |= {"quick": args.quick, "machine": machine(), "budget": budget.__dict__}
+    start = time.perf_counter()
+    for chart in args.charts:
+        t0 = time.perf_counter()
+        say(f"== chart {chart} ==")
+        figures[f"chart{chart}"] = CHARTS[chart].run(budget, args.cache, args.out)
+        figures[f"chart{chart}"]["seconds"] = time.perf_counter() - t0
+        say(
+            f"== chart {chart} done in {time.perf_counter() - t0:.0f} s: {', '.join(figures[f'chart{chart}']['files'])}"
+        )
+    figures["last_run_seconds"] = time.perf_counter() - start
+    figures["command"] = "python -m benchmarks" + (" --quick" if args.quick else "")
+    figures_path.write_text(json.dumps(figures, indent=1, default=float))
+    readme.write(args.out, figures)
+    say(f"done in {figures['last_run_seconds']:.0f} s; figures in {args.out}")
+    for line in readme.headlines(figures):
+        say("  " + line)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

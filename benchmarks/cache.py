@@ -1,0 +1,46 @@
+"""On-disk cache under ``benchmarks/cache/``: keys are hashes of what produced a result, so a changed input renders or
+computes afresh and an unchanged one is read back.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+DEFAULT_DIR = Path(__file__).resolve().parent / "cache"
+REPO = Path(__file__).resolve().parent.parent
+
+
+def digest(*parts: Any) -> str:
+    """A short SHA-256 of `parts` as sorted, compact JSON."""
+    text = json.dumps(parts, sort_keys=True, separators=(",", ":"), default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def source_digest(*folders: str) -> str:
+    """Hash of the Python sources of repository `folders`: results computed by that code are stale when it changes."""
+    h = hashlib.sha256()
+    for folder in folders:
+        for path in sorted((REPO / folder).glob("*.py")):
+            h.update(path.name.encode())
+            h.update(path.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def memo_json(cache_dir: Path, name: str, key: str, compute: Callable[[], Any]) -> Any:
+    """Return the JSON result stored as ``name-key.json``, or compute, store and return it."""
+    path = Path(cache_dir) / f"{name}-{key}.json"
+    if path.exists():
+        with open(path) as f:
+            return json.load(f)
+    result = compute()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(f".tmp{os.getpid()}")
+    with open(tmp, "w") as f:
+        json.dump(result, f)
+    tmp.replace(path)  # atomic: an interrupted run never leaves a half-written entry
+    return result

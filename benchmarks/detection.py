@@ -1,0 +1,340 @@
+"""Chart 1: detection rate against render seconds, per bias case and method, and the false-positive rates.
+
+x: render seconds spent on both sides (the median seconds of a pass of each pool times the passes used; for the
+RMSE baseline the converged reference's whole render time plus the test's passes). y: share of trials that call
+the pair biased at alpha = 0.01, with a 95 % Wilson interval.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from . import plan, trials
+from .cache import digest, memo_json, source_digest
+from .plotting import COLORS, plt, save, write_csv
+from .pools import load_or_render, say
+from .trials import ALPHA, CALIBRATED_METHODS, COMPARE_METHODS, LABELS, METHODS
+
+#: Detection share the "seconds to detect" figures refer to.
+TARGET = 0.8
+UNPAIRED = [m for m in COMPARE_METHODS if COMPARE_METHODS[m][1] == "welch"]
+
+
+def _code() -> str:
+    return f"{source_digest('welch_core')}-{trials.TRIALS_VERSION}"
+
+
+# -- unbiased pairs ------------------------------------------------------------------------------------------
+
+
+def null_results(b: plan.Budget, ref, converged, cache_dir: Path) -> dict:
+    """A/A trials on one reference pool: verdict counts of the tool's unpaired tests per n, and the baselines'
+    statistics per n (first half of the trials calibrates the threshold, the second half measures the rate)."""
+
+    def compute():
+        rng = np.random.default_rng(int(digest("null", ref.spec.key)[:8], 16))
+        out = {"compare": {}, "rmse": {}, "tilediff16": {}}
+        for n in b.n_grid:
+            if 2 * n > ref.n:
+                continue
+            counts = {m: [0, 0] for m in UNPAIRED}  # biased, inconclusive
+            for _ in range(b.null_trials):
+                verdicts = trials.compare_verdicts(ref, ref, trials.draw_unpaired(rng, ref.n, n), UNPAIRED)
+                for m, v in verdicts.items():
+                    counts[m][0] += v == "biased"
+                    counts[m][1] += v == "inconclusive"
+            out["compare"][str(n)] = {"trials": b.null_trials, "counts": counts}
+        ns = [n for n in b.n_grid if 2 * n <= ref.n]
+        rmse, tdiff = [], []
+        for _ in range(b.calibration_trials):
+            rmse.append(trials.rmse_curve(ref, rng.permutation(ref.n), ns, converged.mean_image).tolist())
+            perm = rng.permutation(ref.n)
+            half = ref.n // 2
+            tdiff.append(trials.tilediff_curve(ref, ref, perm[:half], perm[half:], ns).tolist())
+        out["rmse"] = {str(n): [row[i] for row in rmse] for i, n in enumerate(ns)}
+        out["tilediff16"] = {str(n): [row[i] for row in tdiff] for i, n in enumerate(ns)}
+        return out
+
+    key = digest(ref.spec.key, converged.spec.key, b.n_grid, b.null_trials, b.calibration_trials, _code())
+    say(f"chart 1: unbiased pairs on {ref.spec.scene} {' '.join(ref.spec.overrides)[:60]}")
+    return memo_json(cache_dir, "null", key, compute)
+
+
+def paired_null_results(b: plan.Budget, ref, other, cache_dir: Path) -> dict:
+    """The paired test on an unbiased pair with identical seeds (two sampling patterns of one scene)."""
+
+    def compute():
+        rng = np.random.default_rng(int(digest("paired-null", ref.spec.key)[:8], 16))
+        out = {}
+        for n in b.n_grid:
+            if n > ref.n:
+                continue
+            counts = [0, 0]
+            for _ in range(b.null_trials):
+                v = trials.compare_verdicts(ref, other, trials.draw_paired(rng, ref.n, n), ["paired32"])["paired32"]
+                counts[0] += v == "biased"
+                counts[1] += v == "inconclusive"
+            out[str(n)] = {"trials": b.null_trials, "counts": counts}
+        return out
+
+    key = digest(ref.spec.key, other.spec.key, b.n_grid, b.null_trials, _code())
+    return memo_json(cache_dir, "paired-null", key, compute)
+
+
+def thresholds(null: dict) -> dict[str, dict[int, float]]:
+    """Per baseline and n: the threshold from the calibration half of the unbiased trials."""
+    return {
+        m: {int(n): trials.calibrate(np.array(v[: len(v) // 2])) for n, v in null[m].items()}
+        for m in CALIBRATED_METHODS
+    }
+
+
+def false_positive_rows(group: str, null: dict, paired: dict | None) -> list[dict]:
+    rows = []
+    for n, entry in null["compare"].items():
+        for m, (k, inc) in entry["counts"].items():
+            rows.append(_rate_row(group, m, int(n), k, entry["trials"], inc))
+    limits = thresholds(null)
+    for m in CALIBRATED_METHODS:
+        for n, values in null[m].items():
+            held_out = np.array(values[len(values) // 2 :])  # not used to set the threshold
+            rows.append(_rate_row(group, m, int(n), int((held_out > limits[m][int(n)]).sum()), len(held_out), 0))
+    for n, entry in (paired or {}).items():
+        k, inc = entry["counts"]
+        rows.append(_rate_row(group, "paired32", int(n), k, entry["trials"], inc))
+    return rows
+
+
+def _rate_row(group, method, n, k, total, inconclusive) -> dict:
+    lo, hi = trials.wilson(k, total)
+    return {
+        "group": group, "method": method, "n": n, "trials": total, "biased": k, "rate": k / total,
+        "lo": lo, "hi": hi, "inconclusive": inconclusive,
+    }  # fmt: skip
+
+
+# -- biased pairs --------------------------------------------------------------------------------------------
+
+
+def case_results(b: plan.Budget, case: plan.Case, pools: dict, null: dict, cache_dir: Path) -> list[dict]:
+    """Detection counts per method and n; a method stops once two consecutive n found every trial biased."""
+    ref, test, conv = pools[case.ref.key], pools[case.test.key], pools[case.converged.key]
+    limits = thresholds(null)
+
+    def compute():
+        rng = np.random.default_rng(int(digest("case", case.test.key)[:8], 16))
+        rows, saturated = [], {m: 0 for m in METHODS}
+        for n in b.n_grid:
+            active = [m for m in COMPARE_METHODS if saturated[m] < 2]
+            if 2 * n > ref.n:
+                active = [m for m in active if m == "paired32"]
+            counts = {m: [0, 0] for m in active}
+            for _ in range(b.trials):
+                unpaired = [m for m in active if m != "paired32"]
+                if unpaired:
+                    for m, v in trials.compare_verdicts(
+                        ref, test, trials.draw_unpaired(rng, ref.n, n), unpaired
+                    ).items():
+                        counts[m][0] += v == "biased"
+                        counts[m][1] += v == "inconclusive"
+                if "paired32" in active:
+                    v = trials.compare_verdicts(ref, test, trials.draw_paired(rng, ref.n, n), ["paired32"])["paired32"]
+                    counts["paired32"][0] += v == "biased"
+                    counts["paired32"][1] += v == "inconclusive"
+            if str(n) in null["rmse"]:
+                for m in CALIBRATED_METHODS:
+                    counts[m] = [0, 0]
+                for _ in range(b.trials):
+                    r = trials.rmse_curve(test, rng.permutation(test.n)[:n], [n], conv.mean_image)[0]
+                    perm = rng.permutation(ref.n)
+                    half = ref.n // 2
+                    d = trials.tilediff_curve(ref, test, perm[:half], perm[half:], [n])[0]
+                    counts["rmse"][0] += r > limits["rmse"][n]
+                    counts["tilediff16"][0] += d > limits["tilediff16"][n]
+            for m, (k, inc) in counts.items():
+                rows.append({"method": m, "n": n, "trials": b.trials, "biased": int(k), "inconclusive": int(inc)})
+                saturated[m] = saturated[m] + 1 if k == b.trials else 0
+            say(f"  {case.name}: n = {n}: " + ", ".join(f"{m} {k / b.trials:.2f}" for m, (k, _) in counts.items()))
+        return rows
+
+    key = digest(case.ref.key, case.test.key, case.converged.key, b.n_grid, b.trials, b.calibration_trials, _code())
+    say(f"chart 1: case {case.name}")
+    return memo_json(cache_dir, "case", key, compute)
+
+
+def seconds(method: str, n: int, ref, test, conv) -> float:
+    """Render seconds behind one trial of `method` with n passes a side."""
+    if method == "rmse":
+        return conv.total_seconds + n * test.seconds_per_pass
+    return n * (ref.seconds_per_pass + test.seconds_per_pass)
+
+
+def seconds_to_target(rows: list[dict]) -> tuple[float | None, float | None]:
+    """Seconds and passes at which the detection rate first reaches TARGET (log-linear between grid points)."""
+    prev = None
+    for row in sorted(rows, key=lambda r: r["n"]):
+        if row["rate"] >= TARGET:
+            if prev is None or prev["rate"] >= TARGET:
+                return row["seconds"], row["n"]
+            f = (TARGET - prev["rate"]) / (row["rate"] - prev["rate"])
+            s = np.exp(np.log(prev["seconds"]) + f * (np.log(row["seconds"]) - np.log(prev["seconds"])))
+            n = np.exp(np.log(prev["n"]) + f * (np.log(row["n"]) - np.log(prev["n"])))
+            return float(s), float(n)
+        prev = row
+    return None, None
+
+
+def mean_change(ref, test) -> tuple[float, float]:
+    """Relative change of the image mean (test / ref - 1) and its standard error from the pass-to-pass spread."""
+    r = np.asarray(ref.images, dtype=np.float64).mean(axis=(1, 2, 3))
+    t = np.asarray(test.images, dtype=np.float64).mean(axis=(1, 2, 3))
+    change = t.mean() / r.mean() - 1
+    se = np.sqrt(r.var(ddof=1) / len(r) + t.var(ddof=1) / len(t)) / r.mean()
+    return float(change), float(se)
+
+
+# -- the chart -----------------------------------------------------------------------------------------------
+
+
+def run(b: plan.Budget, cache_dir: Path, out_dir: Path) -> dict:
+    """Render (or read) the pools, run every trial, write the CSVs and the chart; return the headline figures."""
+    cases = plan.cases(b)
+    paired_ref, paired_other = plan.paired_null(b)
+    specs = {}
+    for c in cases:
+        specs |= {c.ref.key: c.ref, c.test.key: c.test, c.converged.key: c.converged}
+    specs[paired_other.key] = paired_other
+    say(f"chart 1: {len(specs)} pools")
+    pools = {key: load_or_render(spec, cache_dir) for key, spec in specs.items()}
+
+    groups = {}  # reference pool key -> (group name, null results)
+    fp_rows = []
+    for c in cases:
+        if c.ref.key in groups:
+            continue
+        name = c.group
+        null = null_results(b, pools[c.ref.key], pools[c.converged.key], cache_dir)
+        paired = None
+        if c.ref.key == paired_ref.key:
+            paired = paired_null_results(b, pools[paired_ref.key], pools[paired_other.key], cache_dir)
+        groups[c.ref.key] = (name, null)
+        fp_rows += false_positive_rows(name, null, paired)
+
+    det_rows, summary = [], []
+    for c in cases:
+        ref, test, conv = pools[c.ref.key], pools[c.test.key], pools[c.converged.key]
+        change, se = mean_change(ref, test)
+        for row in case_results(b, c, pools, groups[c.ref.key][1], cache_dir):
+            lo, hi = trials.wilson(row["biased"], row["trials"])
+            det_rows.append(
+                {"case": c.name, **row, "rate": row["biased"] / row["trials"], "lo": lo, "hi": hi,
+                 "seconds": seconds(row["method"], row["n"], ref, test, conv)}
+            )  # fmt: skip
+        for m in METHODS:
+            s, n = seconds_to_target([r for r in det_rows if r["case"] == c.name and r["method"] == m])
+            summary.append(
+                {"case": c.name, "label": c.label, "mean_change": change, "mean_change_se": se, "method": m,
+                 "seconds_to_80": s, "passes_to_80": n, "converged_seconds": conv.total_seconds,
+                 "seconds_per_pass_ref": ref.seconds_per_pass, "seconds_per_pass_test": test.seconds_per_pass}
+            )  # fmt: skip
+
+    files = [
+        write_csv(out_dir / "chart1_detection.csv", det_rows),
+        write_csv(out_dir / "chart1_false_positives.csv", fp_rows),
+        write_csv(out_dir / "chart1_seconds_to_80.csv", summary),
+        _plot(out_dir / "chart1_detection.png", cases, det_rows, fp_rows, summary),
+    ]
+    return {"files": files, "summary": summary, "false_positives": _fp_totals(fp_rows), "pools": _pool_rows(pools)}
+
+
+def _fp_totals(fp_rows: list[dict]) -> list[dict]:
+    """False-positive rate per reference and method over all n."""
+    out = []
+    for group in dict.fromkeys(r["group"] for r in fp_rows):
+        for m in METHODS:
+            rows = [r for r in fp_rows if r["group"] == group and r["method"] == m]
+            if rows:
+                k, total = sum(r["biased"] for r in rows), sum(r["trials"] for r in rows)
+                lo, hi = trials.wilson(k, total)
+                inc = sum(r["inconclusive"] for r in rows)
+                out.append({"group": group, "method": m, "trials": total, "biased": k, "rate": k / total,
+                            "lo": lo, "hi": hi, "inconclusive": inc})  # fmt: skip
+    return out
+
+
+def _pool_rows(pools: dict) -> list[dict]:
+    return [
+        {"scene": p.spec.scene, "overrides": " ".join(p.spec.overrides), "resolution": p.spec.resolution,
+         "spp": p.spec.spp, "passes": p.n, "pattern": p.spec.pattern, "seconds_per_pass": p.seconds_per_pass,
+         "total_seconds": p.total_seconds, "key": p.spec.key}
+        for p in pools.values()
+    ]  # fmt: skip
+
+
+def _plot(path: Path, cases, det_rows, fp_rows, summary) -> str:
+    fig = plt.figure(figsize=(16, 12.5))
+    grid = fig.add_gridspec(3, 3, height_ratios=[1, 1, 0.9], hspace=0.38, wspace=0.22)
+    for i, c in enumerate(cases):
+        ax = fig.add_subplot(grid[i // 3, i % 3])
+        info = next(s for s in summary if s["case"] == c.name)
+        for m in METHODS:
+            rows = sorted((r for r in det_rows if r["case"] == c.name and r["method"] == m), key=lambda r: r["n"])
+            if not rows:
+                continue
+            x = [r["seconds"] for r in rows]
+            ax.plot(x, [r["rate"] for r in rows], "o-", ms=3, color=COLORS[m], label=LABELS[m])
+            ax.fill_between(x, [r["lo"] for r in rows], [r["hi"] for r in rows], color=COLORS[m], alpha=0.15, lw=0)
+        ax.axhline(TARGET, color="k", ls=":", lw=0.8)
+        ax.axhline(ALPHA, color="k", ls="--", lw=0.6)
+        ax.set_xscale("log")
+        ax.set_ylim(-0.02, 1.02)
+        ax.set_title(
+            f"{c.label}\nmean change {100 * info['mean_change']:+.2f} % (± {100 * info['mean_change_se']:.2f})",
+            fontsize=10,
+        )
+        ax.set_xlabel("render seconds, both sides (log)")
+        ax.set_ylabel("share of trials: biased")
+        ax.grid(alpha=0.3, which="both", lw=0.4)
+    handles, labels = ax.get_legend_handles_labels()
+    ax = fig.add_subplot(grid[2, :])
+    _plot_false_positives(ax, fp_rows)
+    fig.legend(handles, labels, loc="upper center", ncol=4, fontsize=9, bbox_to_anchor=(0.5, 0.935))
+    trials_note = f"{det_rows[0]['trials']} trials per point" if det_rows else ""
+    fig.suptitle(
+        f"Chart 1: detection rate against render time (α = {ALPHA}; bands: 95 % Wilson; {trials_note})", y=0.965
+    )
+    return save(fig, path)
+
+
+def _plot_false_positives(ax, fp_rows) -> None:
+    totals = _fp_totals(fp_rows)
+    groups = list(dict.fromkeys(r["group"] for r in totals))
+    width = 0.8 / len(METHODS)
+    for j, m in enumerate(METHODS):
+        for i, g in enumerate(groups):
+            r = next((r for r in totals if r["group"] == g and r["method"] == m), None)
+            if r is None:
+                continue
+            x = i + (j - (len(METHODS) - 1) / 2) * width
+            ax.errorbar(
+                x,
+                r["rate"],
+                yerr=[[max(0.0, r["rate"] - r["lo"])], [max(0.0, r["hi"] - r["rate"])]],
+                fmt="o",
+                color=COLORS[m],
+                ms=5,
+                capsize=3,
+            )
+            ax.annotate(
+                f"{r['trials']}", (x, r["hi"]), textcoords="offset points", xytext=(0, 3), ha="center", fontsize=6
+            )
+    ax.axhline(ALPHA, color="k", ls="--", lw=0.8, label=f"α = {ALPHA}")
+    ax.set_xticks(range(len(groups)), [f"unbiased pairs: {g}" for g in groups])
+    ax.set_ylabel("false-positive rate")
+    ax.set_title("False positives on unbiased pairs (reference vs reference, disjoint seeds; paired: Sobol vs "
+                 "blue noise, "
+                 "same seeds), all n pooled; numbers: trials", fontsize=10)  # fmt: skip
+    ax.grid(alpha=0.3, axis="y")
+    ax.legend(loc="upper right", fontsize=8)

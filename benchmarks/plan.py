@@ -1,0 +1,148 @@
+"""What the benchmarks render and how many trials they draw: the full run and the quick (CI) run.
+
+Model no more than a scene needs: 128×128 px at 1 spp per pass is the smallest image that still holds a 2×2 grid
+of 64×64 tiles (the largest tile the paper tries), and 400 passes are enough for the slowest case to be found by
+the Welch test with 200 passes a side. The bright corner (walls 0.8, light 600 W) exists because in the paper's
+grey corner (walls 0.2, 60 W) no indirect sample reaches the clamp of 10 and paths beyond two bounces carry almost
+nothing, so clamping and bounce limits would have no effect to detect (measured: identical means to 7 digits).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+from batch.scenes import LIGHT_ENERGY, LIGHT_ENERGY_PATH, WALL_COLOR_PATH
+
+from .pools import PoolSpec
+
+
+def _grey(value: float) -> str:
+    return f"{WALL_COLOR_PATH}={value},{value},{value},1"
+
+
+#: Every bounce limit far above what Russian roulette lets a path reach: an untruncated reference.
+UNBOUNDED = tuple(
+    f"cycles.{name}=1024" for name in ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces")
+)
+BRIGHT = (_grey(0.8), f"{LIGHT_ENERGY_PATH}={10 * LIGHT_ENERGY:g}")
+CONVERGED_FIRST_SEED = 1_000_000  # seeds of the converged references: disjoint from every pool's
+
+
+@dataclass(frozen=True)
+class Case:
+    """A biased variant against its unbiased reference."""
+
+    name: str
+    label: str
+    group: str  # name of the reference configuration
+    ref: PoolSpec
+    test: PoolSpec
+    converged: PoolSpec  # the RMSE baseline's reference
+
+
+@dataclass(frozen=True)
+class Budget:
+    """Sizes of one run of the benchmarks."""
+
+    resolution: int
+    passes: int  # per pool
+    converged_spp: int  # spp of one pass of a converged reference
+    converged_passes: int
+    n_grid: tuple[int, ...]  # passes a side
+    trials: int  # trials per point of a biased case
+    null_trials: int  # trials per n of the tool's tests on unbiased pairs
+    calibration_trials: int  # unbiased trials per n for the baselines: half calibrate, half measure
+    stability_trials: int
+    pixel_trials: int  # per-pixel tests (16k tiles a compare)
+    pvalue_grid: tuple[int, int]  # nu values, |t| values for the mpmath reference
+    pvalue_size: int  # tile-channel tests per timing
+    cost_resolutions: tuple[int, ...]
+    cost_passes: int
+    verdict_passes: tuple[int, ...]
+    tile_counts: tuple[int, ...]
+    overhead_passes: int
+    heavy_subdivisions: int  # icosphere subdivisions of the heavy mesh: 20 * 4**s triangles
+    heavy_passes: int
+
+    def pool(self, scene: str, *overrides: str, **changes) -> PoolSpec:
+        spec = PoolSpec(scene, tuple(overrides), self.resolution, 1, self.passes)
+        return replace(spec, **changes)
+
+    def converged(self, ref: PoolSpec) -> PoolSpec:
+        return replace(ref, spp=self.converged_spp, passes=self.converged_passes, first_seed=CONVERGED_FIRST_SEED)
+
+
+FULL = Budget(
+    resolution=128,
+    passes=400,
+    converged_spp=64,
+    converged_passes=16,
+    n_grid=(2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192),
+    trials=200,
+    null_trials=200,
+    calibration_trials=1000,
+    stability_trials=400,
+    pixel_trials=100,
+    pvalue_grid=(41, 81),
+    pvalue_size=1_000_000,
+    cost_resolutions=(64, 128, 256, 512, 1024),
+    cost_passes=5,
+    verdict_passes=(8, 16, 32, 64, 128, 200),
+    tile_counts=(16, 64, 256, 1024, 4096, 8040),
+    overhead_passes=40,
+    heavy_subdivisions=7,
+    heavy_passes=12,
+)
+
+QUICK = Budget(
+    resolution=64,
+    passes=24,
+    converged_spp=16,
+    converged_passes=2,
+    n_grid=(2, 4, 8),
+    trials=8,
+    null_trials=8,
+    calibration_trials=20,
+    stability_trials=8,
+    pixel_trials=3,
+    pvalue_grid=(5, 7),
+    pvalue_size=10_000,
+    cost_resolutions=(64, 128),
+    cost_passes=2,
+    verdict_passes=(4, 8),
+    tile_counts=(16, 64),
+    overhead_passes=3,
+    heavy_subdivisions=4,
+    heavy_passes=2,
+)
+
+
+def cases(b: Budget) -> list[Case]:
+    """Chart 1's bias cases, each with its reference and the converged reference for the RMSE baseline."""
+    corner = b.pool("corner")
+    bright = b.pool("corner", *BRIGHT, *UNBOUNDED)
+    glossy = b.pool("glossy")
+    light = f"{LIGHT_ENERGY_PATH}={LIGHT_ENERGY * 1.005:g}"
+    bright_test = (*BRIGHT, *UNBOUNDED)
+    spec = [
+        ("walls", "walls 0.20 → 0.21 (paper Fig. 16)", corner, b.pool("corner", _grey(0.21))),
+        ("light", "light ×1.005", corner, b.pool("corner", light)),
+        ("clamp", "indirect clamp 10 vs off (bright corner)", bright,
+         b.pool("corner", *bright_test, "cycles.sample_clamp_indirect=10")),
+        ("bounces", "max bounces 2 vs unlimited (bright corner)", bright,
+         b.pool("corner", *bright_test, "cycles.max_bounces=2")),
+        ("default_bounces", "Cycles' default bounce limits vs unlimited (bright)", bright, b.pool("corner", *BRIGHT)),
+        ("glossy", "Filter Glossy 1.0 vs 0 (glossy scene)", glossy, b.pool("glossy", "cycles.blur_glossy=1.0")),
+    ]  # fmt: skip
+    groups = {corner: "corner", bright: "bright corner", glossy: "glossy"}
+    return [Case(name, label, groups[ref], ref, test, b.converged(ref)) for name, label, ref, test in spec]
+
+
+def paired_null(b: Budget) -> tuple[PoolSpec, PoolSpec]:
+    """An unbiased pair with the same seeds for the paired test's false-positive rate: the sampling pattern
+    changes the random numbers but not the expectation (BLENDER_FACTS: measured unbiased)."""
+    return b.pool("corner"), b.pool("corner", pattern="BLUE_NOISE")
+
+
+def glass(b: Budget) -> PoolSpec:
+    return b.pool("corner_glass")

@@ -1,0 +1,129 @@
+"""Chart 2: the p-value methods, time per million tile-channel tests against their largest relative error.
+
+Methods: the exact Student t (welch_core's default), the paper's Gaussian (eq. 5) and its Abramowitz-Stegun erf
+(eq. 6), each once where nu >= 20 only (what welch_core offers) and once everywhere (what the paper warns about in
+§5.7). Reference: mpmath at 40 digits on a grid of nu in [1, 1e4] (log-spaced) and |t| in [0, 40]. Relative errors
+are taken where the true p is at least 1e-300 (doubles hold nothing smaller); the error of log p is taken where
+p < 0.01, the region that decides a verdict.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import mpmath
+import numpy as np
+
+import welch_core as wc
+
+from .cache import digest, memo_json
+from .core_speed import best_time, mp_student
+from .plotting import plt, save, write_csv
+from .pools import say
+
+METHODS = {
+    "exact": ("exact Student t", lambda t, nu: wc.two_sided_pvalue(t, nu, "exact")),
+    "gauss_nu20": ("Gaussian where ν ≥ 20", lambda t, nu: wc.two_sided_pvalue(t, nu, "gauss")),
+    "as_erf_nu20": ("A&S erf where ν ≥ 20", lambda t, nu: wc.two_sided_pvalue(t, nu, "as_erf")),
+    "gauss_all": ("Gaussian everywhere", lambda t, _nu: wc.pvalue_gauss(t)),
+    "as_erf_all": ("A&S erf everywhere", lambda t, _nu: wc.pvalue_as_erf(t)),
+}
+SMALL_P = 0.01
+FLOOR = 1e-300
+#: Below this no verdict changes: alpha = 0.01 over 3 channels and 10^4 tiles (Bonferroni/Holm) is 3e-7.
+DECISIVE = 1e-7
+
+
+def reference(n_nu: int, n_t: int, cache_dir: Path) -> dict:
+    """log10 of the true two-sided p on the grid, from mpmath at 40 digits (cached: it takes a while)."""
+
+    def compute():
+        nu = np.logspace(0, 4, n_nu)
+        t = np.linspace(0, 40, n_t)
+        with mpmath.workdps(40):
+            logp = [[float(mpmath.log10(mp_student(float(a), float(d)))) for a in t] for d in nu]
+        return {"nu": nu.tolist(), "t": t.tolist(), "log10p": logp}
+
+    return memo_json(cache_dir, "pvalue-reference", digest(n_nu, n_t, 40), compute)
+
+
+def errors(ref: dict) -> tuple[dict, dict]:
+    """Per method: the largest relative error of p and of log p; and per nu, the largest relative error of p."""
+    nu, t = np.meshgrid(ref["nu"], ref["t"], indexing="ij")
+    log10_true = np.array(ref["log10p"])
+    true = 10.0**log10_true
+    ok = log10_true >= np.log10(FLOOR)
+    small = ok & (log10_true < np.log10(SMALL_P))
+    worst, per_nu = {}, {}
+    for name, (_label, f) in METHODS.items():
+        with np.errstate(divide="ignore", invalid="ignore"):
+            p = f(t, nu)
+            rel = np.abs(p - true) / true
+            rel_log = np.abs(np.log10(p) - log10_true) / np.abs(log10_true)
+        decisive = log10_true >= np.log10(DECISIVE)
+        worst[name] = {
+            "rel_p": float(rel[ok].max()),
+            "rel_p_decisive": float(rel[decisive].max()),
+            "rel_logp": float(rel_log[small].max()),
+        }
+        per_nu[name] = np.where(ok, rel, 0.0).max(axis=1).tolist()
+    return worst, per_nu
+
+
+def timings(size: int) -> dict[str, float]:
+    """Milliseconds per million tile-channel tests (best of 5; t uniform in ±40, nu log-uniform in [1, 1e4])."""
+    rng = np.random.default_rng(3)
+    t = rng.uniform(-40.0, 40.0, size)
+    nu = 10.0 ** rng.uniform(0.0, 4.0, size)
+    return {name: best_time(lambda f=f: f(t, nu), 5) * 1e3 * 1e6 / size for name, (_l, f) in METHODS.items()}
+
+
+def run(b, cache_dir: Path, out_dir: Path) -> dict:
+    say("chart 2: mpmath reference")
+    ref = reference(*b.pvalue_grid, cache_dir)
+    worst, per_nu = errors(ref)
+    say("chart 2: timing")
+    ms = timings(b.pvalue_size)
+    rows = [
+        {"method": name, "label": METHODS[name][0], "ms_per_million": ms[name], "max_rel_err_p": worst[name]["rel_p"],
+         "max_rel_err_p_decisive": worst[name]["rel_p_decisive"], "max_rel_err_log_p_small": worst[name]["rel_logp"]}
+        for name in METHODS
+    ]  # fmt: skip
+    files = [
+        write_csv(out_dir / "chart2_pvalue_methods.csv", rows),
+        _plot(out_dir / "chart2_pvalue_methods.png", rows, ref, per_nu),
+    ]
+    return {"files": files, "rows": rows, "grid": {"nu": len(ref["nu"]), "t": len(ref["t"])}}
+
+
+def _plot(path: Path, rows: list[dict], ref: dict, per_nu: dict) -> str:
+    fig, axes = plt.subplots(1, 4, figsize=(21, 4.6))
+    cap = 1e3  # where an infinite error (p underflowed to 0) is drawn
+    for ax, key, title in (
+        (axes[0], "max_rel_err_p", "largest relative error of p (p ≥ 1e-300)"),
+        (axes[1], "max_rel_err_p_decisive", f"largest relative error of p (p ≥ {DECISIVE:g}: decides verdicts)"),
+        (axes[2], "max_rel_err_log_p_small", f"largest relative error of log p (p < {SMALL_P})"),
+    ):
+        for i, r in enumerate(rows):
+            y = r[key] if np.isfinite(r[key]) else cap
+            ax.plot(r["ms_per_million"], max(y, 1e-17), "^" if y == cap else "o", color=f"C{i}", ms=8, label=r["label"])
+            ax.annotate("∞" if y == cap else f"{y:.1e}", (r["ms_per_million"], max(y, 1e-17)), xytext=(6, -3),
+                        textcoords="offset points", fontsize=8)  # fmt: skip
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("ms per million tile-channel tests")
+        ax.set_title(title, fontsize=10)
+        ax.grid(alpha=0.3, which="both", lw=0.4)
+    axes[0].legend(fontsize=8, loc="center right")
+    for i, (name, values) in enumerate(per_nu.items()):
+        axes[3].plot(ref["nu"], np.maximum(values, 1e-17), color=f"C{i}", label=METHODS[name][0])
+    axes[3].axvline(20, color="k", ls=":", lw=0.8)
+    axes[3].set_xscale("log")
+    axes[3].set_yscale("log")
+    axes[3].set_xlabel("degrees of freedom ν")
+    axes[3].set_title("largest relative error of p over |t| ≤ 40, per ν", fontsize=10)
+    axes[3].grid(alpha=0.3, which="both", lw=0.4)
+    fig.suptitle(
+        f"Chart 2: p-value methods (reference: mpmath, 40 digits, {len(ref['nu'])} ν × {len(ref['t'])} |t| grid)"
+    )
+    return save(fig, path)

@@ -1,0 +1,233 @@
+"""Chart 3: stability where the methods fail, on unbiased pairs (a configuration against itself, disjoint seeds).
+
+For each situation: the false-positive (`biased`) rate over trials with its Wilson interval, the p-value histogram
+of the tile-channels that entered the verdicts, and what the diagnostics said (share of `inconclusive`, share of
+untrusted tiles, the notes). Expected: "calibrated" (rate not above alpha), or the tool flags the situation
+(`inconclusive`, untrusted tiles, a note, or a refusal). A clearly raised rate without a flag is a defect of the
+tool, printed as ``SILENT FALSE POSITIVES``.
+
+Two rows are not the tool's own behaviour, to show what it guards against: the paper's Gaussian p used everywhere
+(§5.7), and Welch's formula forced onto passes with identical seeds.
+"""
+
+from __future__ import annotations
+
+import re
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+import welch_core as wc
+
+from . import plan, trials
+from .cache import digest, memo_json, source_digest
+from .plotting import plt, save, write_csv
+from .pools import load_or_render, say
+from .trials import ALPHA
+
+BINS = 20
+
+
+def _tally(outcomes: list[dict]) -> dict:
+    """Aggregate per-trial outcomes into counts, shares, a p-value histogram and the notes."""
+    total = len(outcomes)
+    hist = np.zeros(BINS, int)
+    notes = Counter()
+    for o in outcomes:
+        hist += o["hist"]
+        notes.update(o["notes"])
+    biased = sum(o["verdict"] == "biased" for o in outcomes)
+    flagged_biased = sum(o["verdict"] == "biased" and bool(o["notes"] or o["untrusted"]) for o in outcomes)
+    lo, hi = trials.wilson(biased, total)
+    return {
+        "trials": total,
+        "biased": biased,
+        "rate": biased / total,
+        "lo": lo,
+        "hi": hi,
+        "inconclusive": sum(o["verdict"] == "inconclusive" for o in outcomes) / total,
+        "refused": sum(o["verdict"] == "refused" for o in outcomes) / total,
+        "untrusted_share": float(np.mean([o["untrusted"] / max(o["valid"], 1) for o in outcomes])),
+        "biased_with_flag": flagged_biased,
+        "hist": hist.tolist(),
+        "notes": dict(notes.most_common(4)),
+    }
+
+
+def _outcome(comparison: wc.Comparison) -> dict:
+    p = comparison.pvalues[comparison.used]
+    return {
+        "verdict": comparison.verdict,
+        "hist": np.histogram(p, BINS, (0, 1))[0],
+        "untrusted": int((np.isfinite(comparison.tile_pvalues) & ~comparison.trusted).sum()),
+        "valid": comparison.n_valid,
+        # Numbers vary from trial to trial; the note's kind is what counts.
+        "notes": [re.sub(r"\d+", "#", note) for note in comparison.notes],
+    }
+
+
+def _by_hand(result: wc.TTestResult, pvalues: np.ndarray) -> dict:
+    """A verdict from p-values welch_core does not produce itself: channels by Bonferroni, tiles by the global test."""
+    glob = wc.global_test(wc.combine_channels(pvalues), ALPHA)
+    finite = pvalues[np.isfinite(pvalues)]
+    return {
+        "verdict": "biased" if glob.rejected else "no_evidence",
+        "hist": np.histogram(finite, BINS, (0, 1))[0],
+        "untrusted": 0,
+        "valid": int(np.isfinite(result.pvalue).any(axis=-1).sum()),
+        "notes": [],
+    }
+
+
+def compare_trials(
+    rng, ref, test, n, tile, count, draw="unpaired", kind="auto", pvalue_method="exact", forced=None
+) -> list[dict]:
+    """`count` trials of `welch_core.compare` (or a forced variant) at n passes a side and `tile`.
+
+    `draw` chooses disjoint ("unpaired") or identical ("paired") seeds; `kind` is compare's `test_kind`.
+    """
+    drawer = trials.draw_paired if draw == "paired" else trials.draw_unpaired
+    out = []
+    for _ in range(count):
+        draw_ = drawer(rng, ref.n, n)
+        a, b = ref.stats(draw_.ref, tile), test.stats(draw_.test, tile)
+        if forced == "gauss_everywhere":
+            # The paper's p_inf for every tile-channel, even at small nu (§5.7, Fig. 22 b).
+            r = wc.welch_from_stats(a.mean, a.variance, a.n, b.mean, b.variance, b.n)
+            out.append(_by_hand(r, wc.pvalue_gauss(r.statistic)))
+        elif forced == "welch_same_seeds":
+            # Welch's formula on passes with the same seeds: what compare refuses to do.
+            r = wc.welch_from_stats(a.mean, a.variance, a.n, b.mean, b.variance, b.n)
+            out.append(_by_hand(r, r.pvalue))
+        else:
+            try:
+                out.append(_outcome(wc.compare(a, b, ALPHA, test_kind=kind, pvalue_method=pvalue_method)))
+            except wc.SeedOverlapError as error:
+                out.append({"verdict": "refused", "hist": np.zeros(BINS, int), "untrusted": 0, "valid": 0,
+                            "notes": [f"SeedOverlapError: {error}"]})  # fmt: skip
+    return out
+
+
+def situations(b: plan.Budget) -> list[dict]:
+    """Every situation: label, pools, n, tile, how trials are drawn, what is expected."""
+    corner, glass = b.pool("corner"), plan.glass(b)
+    _ref, blue = plan.paired_null(b)
+    light = next(c for c in plan.cases(b) if c.name == "light")
+    big, mid, few = (min(n, b.passes // 2) for n in (64, 32, 16))
+    wide = min(64, b.resolution)
+    out = []
+
+    def add(label, ref, test, n, tile, expected, trials=b.stability_trials, **options):
+        out.append({"label": label, "ref": ref, "test": test, "n": n, "tile": tile, "trials": trials,
+                    "options": options, "expected": expected})  # fmt: skip
+
+    calibrated, flagged, power = "calibrated", "calibrated or flagged", "power"
+    add("corner (baseline), 32² tiles, N = 16", corner, corner, few, 32, calibrated)
+    add("corner, 16² tiles, N = 64", corner, corner, big, 16, calibrated)
+    add("corner + glass sphere (caustics, §5.1), 32² tiles, N = 32", glass, glass, mid, 32, flagged)
+    add(f"corner + glass sphere, {wide}² tiles, N = 32", glass, glass, mid, wide, flagged)
+    add("corner + glass sphere, 32² tiles, N = 64", glass, glass, big, 32, flagged)
+    for n in (2, 3, 5):
+        add(f"very few passes: N = {n}", corner, corner, n, 32, flagged)
+    add("per-pixel tests (tile 1, §5.6), N = 16", corner, corner, few, 1, flagged, b.pixel_trials)
+    add("per-pixel tests (tile 1), N = 64", corner, corner, big, 1, flagged, b.pixel_trials)
+    add("Gaussian p where ν ≥ 20 (the tool's 'gauss'), N = 5", corner, corner, 5, 32, calibrated, pvalue_method="gauss")
+    for n in (5, 10):
+        add(f"Gaussian p everywhere (§5.7, by hand), N = {n}", corner, corner, n, 32, "not offered",
+            forced="gauss_everywhere")  # fmt: skip
+    add("blue noise against blue noise, N = 16", blue, blue, few, 32, calibrated)
+    add("blue noise against Sobol (disjoint seeds), N = 16", corner, blue, few, 32, calibrated)
+    add("unpaired test on identical seeds (A/A)", corner, corner, few, 32, "refused", draw="paired", kind="welch")
+    add("Welch forced on identical seeds (A/A, by hand)", corner, corner, few, 32, "not offered", draw="paired",
+        forced="welch_same_seeds")  # fmt: skip
+    add("light ×1.005 (biased), identical seeds: Welch forced by hand", light.ref, light.test, few, 32, power,
+        draw="paired", forced="welch_same_seeds")  # fmt: skip
+    add("light ×1.005 (biased), identical seeds: paired test", light.ref, light.test, few, 32, power, draw="paired")
+    add("light ×1.005 (biased), disjoint seeds: Welch", light.ref, light.test, few, 32, power)
+    return out
+
+
+def classify(row: dict) -> str:
+    """Compare a situation's result with what is expected of it."""
+    if row["expected"] == "power":
+        return f"detected in {100 * row['rate']:.0f} %"
+    if row["refused"] == 1.0:
+        return "refused (SeedOverlapError)"
+    if row["expected"] == "not offered":
+        if row["lo"] > ALPHA:
+            return "miscalibrated (why the tool does not do this)"
+        return "never rejects (p-values not uniform)" if row["rate"] == 0 else "within alpha"
+    flags = []
+    if row["inconclusive"] > 0:
+        flags.append(f"inconclusive {100 * row['inconclusive']:.0f} %")
+    if row["untrusted_share"] > 0:
+        flags.append(f"untrusted tiles {100 * row['untrusted_share']:.1f} %")
+    if any("unchecked" in note for note in row["notes"]):
+        flags.append("note: normality unchecked")
+    flag = f" ({'; '.join(flags)})" if flags else ""
+    if row["lo"] <= ALPHA:
+        return ("calibrated" if not flags else "calibrated, flagged") + flag
+    if row["biased_with_flag"] == row["biased"]:
+        return "false positives above alpha, every one flagged" + flag
+    return "SILENT FALSE POSITIVES" + flag
+
+
+def run(b: plan.Budget, cache_dir: Path, out_dir: Path) -> dict:
+    plan_rows = situations(b)
+    pools = {}
+    for s in plan_rows:
+        for spec in (s["ref"], s["test"]):
+            if spec.key not in pools:
+                pools[spec.key] = load_or_render(spec, cache_dir)
+    rows = []
+    for s in plan_rows:
+        ref, test = pools[s["ref"].key], pools[s["test"].key]
+        opt = dict(s["options"])
+        key = digest(s["label"], ref.spec.key, test.spec.key, s["n"], s["tile"], s["trials"], opt,
+                     source_digest("welch_core"), trials.TRIALS_VERSION)  # fmt: skip
+
+        def compute(s=s, ref=ref, test=test, opt=opt, key=key):
+            rng = np.random.default_rng(int(key[:8], 16))
+            return _tally(compare_trials(rng, ref, test, s["n"], s["tile"], s["trials"], **opt))
+
+        say(f"chart 3: {s['label']}")
+        tally = memo_json(cache_dir, "stability", key, compute)
+        row = {"situation": s["label"], "n": s["n"], "tile": s["tile"], "expected": s["expected"], **tally}
+        row["outcome"] = classify(row)
+        if row["outcome"].startswith("SILENT"):
+            say(
+                f"  WARNING: {row['situation']}: {row['outcome']}, "
+                f"rate {row['rate']:.3f} [{row['lo']:.3f}, {row['hi']:.3f}]"
+            )
+        rows.append(row)
+    csv_rows = [r | {"hist": " ".join(map(str, r["hist"])), "notes": " | ".join(r["notes"])} for r in rows]
+    files = [write_csv(out_dir / "chart3_stability.csv", csv_rows), _plot(out_dir / "chart3_stability.png", rows)]
+    return {"files": files, "rows": rows}
+
+
+def _plot(path: Path, rows: list[dict]) -> str:
+    cols = 4
+    nrows = -(-len(rows) // cols)
+    fig, axes = plt.subplots(nrows, cols, figsize=(18, 3.1 * nrows), squeeze=False)
+    edges = np.linspace(0, 1, BINS + 1)
+    for ax, r in zip(axes.ravel(), rows, strict=False):
+        hist = np.asarray(r["hist"], float)
+        if hist.sum():
+            ax.bar(edges[:-1], hist / hist.sum() * BINS, width=1 / BINS, align="edge", color="#4c72b0")
+        ax.axhline(1.0, color="k", ls="--", lw=0.7)
+        ax.set_xlim(0, 1)
+        rate = (
+            f"biased {r['biased']}/{r['trials']} = {100 * r['rate']:.1f} % [{100 * r['lo']:.1f}, {100 * r['hi']:.1f}]"
+        )
+        ax.set_title(f"{r['situation']}\n{rate}\n{r['outcome']}", fontsize=7.5)
+        ax.tick_params(labelsize=7)
+    for ax in axes.ravel()[len(rows) :]:
+        ax.axis("off")
+    fig.suptitle(
+        f"Chart 3: stability on unbiased pairs (α = {ALPHA}): histograms of the tile-channel p-values that entered "
+        "the verdicts (density; flat = uniform), false-positive rate [95 % Wilson], outcome",
+        y=1.0,
+    )
+    fig.tight_layout()
+    return save(fig, path)

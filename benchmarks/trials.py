@@ -1,0 +1,121 @@
+"""Repeated trials drawn from pools, the detection methods they run, and rates with binomial intervals.
+
+Each trial draws passes from the pools (never renders): an unpaired trial splits the seeds into two random halves
+and takes the reference's n passes from one and the test's n passes from the other (disjoint seeds); a paired
+trial takes the same n seeds from both pools. Trials resample one pool, so they are not fully independent: two
+trials at n = P/2 share most of their passes.
+
+Methods, all at alpha = 0.01: the tool's own `welch_core.compare` (Welch at tiles 16, 32, 64; the paired test;
+the paper's Gaussian variant) and two conventional baselines whose thresholds are calibrated on unbiased pairs to
+the same false-positive rate: the RMSE of the test's mean image against a converged reference, and the largest
+absolute tile-mean difference (a thresholded tile-wise difference image).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+import welch_core as wc
+
+ALPHA = 0.01
+BASE_TILE = 16
+#: Part of every cached trial result's key, with welch_core's source: bump it when a change here changes results.
+TRIALS_VERSION = 1
+
+#: The tool's tests: (tile, test_kind, pvalue_method). Larger tiles are retiled from the tile-16 sums.
+COMPARE_METHODS = {
+    "welch16": (16, "welch", "exact"),
+    "welch32": (32, "welch", "exact"),
+    "welch64": (64, "welch", "exact"),
+    "gauss32": (32, "welch", "gauss"),
+    "paired32": (32, "paired", "exact"),
+}
+#: Baselines with a threshold calibrated on unbiased pairs.
+CALIBRATED_METHODS = ("rmse", "tilediff16")
+METHODS = (*COMPARE_METHODS, *CALIBRATED_METHODS)
+
+LABELS = {
+    "welch16": "Welch, 16² tiles",
+    "welch32": "Welch, 32² tiles",
+    "welch64": "Welch, 64² tiles",
+    "gauss32": "Welch + paper's Gaussian (ν ≥ 20), 32²",
+    "paired32": "paired t-test, 32² tiles",
+    "rmse": "RMSE vs converged reference",
+    "tilediff16": "max |tile-mean difference|, 16²",
+}
+
+
+def wilson(k: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
+    """Wilson score interval for a binomial rate k/n (stays inside [0, 1] and is sensible at k = 0 or n)."""
+    if n == 0:
+        return float("nan"), float("nan")
+    z = stats.norm.ppf(0.5 + confidence / 2)
+    p = k / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return float(max(0.0, centre - half)), float(min(1.0, centre + half))
+
+
+@dataclass(frozen=True)
+class Draw:
+    """Positions of the passes one trial takes from the reference and the test pool."""
+
+    ref: np.ndarray
+    test: np.ndarray
+
+
+def draw_unpaired(rng: np.random.Generator, passes: int, n: int) -> Draw:
+    """n passes from one random half of the seeds for the reference, n from the other half for the test."""
+    if 2 * n > passes:
+        raise ValueError(f"an unpaired trial of n = {n} a side needs {2 * n} passes, the pool has {passes}")
+    perm = rng.permutation(passes)
+    return Draw(perm[:n], perm[passes // 2 : passes // 2 + n])
+
+
+def draw_paired(rng: np.random.Generator, passes: int, n: int) -> Draw:
+    """The same n seeds on both sides."""
+    idx = rng.choice(passes, n, replace=False)
+    return Draw(idx, idx)
+
+
+def compare_verdicts(ref_pool, test_pool, draw: Draw, methods) -> dict[str, str]:
+    """Verdict of each requested `COMPARE_METHODS` entry on one draw (all share its passes)."""
+    ref16, test16 = ref_pool.stats(draw.ref, BASE_TILE), test_pool.stats(draw.test, BASE_TILE)
+    out = {}
+    for name in methods:
+        tile, kind, pmethod = COMPARE_METHODS[name]
+        factor = tile // BASE_TILE
+        ref, test = (ref16, test16) if factor == 1 else (ref16.retile(factor), test16.retile(factor))
+        out[name] = wc.compare(ref, test, ALPHA, test_kind=kind, pvalue_method=pmethod).verdict
+    return out
+
+
+def rmse_curve(pool, order: np.ndarray, ns, converged: np.ndarray) -> np.ndarray:
+    """RMSE (paper §2) of the mean of the first n passes of `order` against `converged`, for every n in `ns`.
+
+    Nested prefixes of one random order: each n is still a uniformly random subset, at the cost of one pass over
+    the largest n instead of one per n.
+    """
+    total = np.zeros(converged.shape)
+    done, out = 0, []
+    for n in ns:
+        total += np.asarray(pool.images[order[done:n]], dtype=np.float64).sum(axis=0)
+        done = n
+        out.append(np.sqrt(np.mean((total / n - converged) ** 2)))
+    return np.array(out)
+
+
+def tilediff_curve(ref_pool, test_pool, ref_order: np.ndarray, test_order: np.ndarray, ns) -> np.ndarray:
+    """Largest |tile-mean difference| over tile-channels (the tile-wise difference image of paper Fig. 15d)."""
+    ref_sums, test_sums = ref_pool.sums(BASE_TILE), test_pool.sums(BASE_TILE)
+    ref_csum = np.cumsum(ref_sums[ref_order[: max(ns)]], axis=0)
+    test_csum = np.cumsum(test_sums[test_order[: max(ns)]], axis=0)
+    return np.array([np.abs(test_csum[n - 1] / n - ref_csum[n - 1] / n).max() for n in ns])
+
+
+def calibrate(null_values: np.ndarray, alpha: float = ALPHA) -> float:
+    """The threshold that unbiased pairs exceed with probability alpha (the empirical 1 - alpha quantile)."""
+    return float(np.quantile(null_values, 1.0 - alpha, method="higher"))

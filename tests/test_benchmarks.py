@@ -1,0 +1,42 @@
+"""The benchmarks' pipeline end to end in its quick form: pools rendered with Cycles, trials, charts, README.
+
+Checks that every output exists and is non-empty, not the values (the quick run's pools are far too small).
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("bpy")
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+@pytest.mark.slow
+def test_quick_benchmarks_write_every_output(tmp_path):
+    out, cache = tmp_path / "out", tmp_path / "cache"
+    run = subprocess.run(
+        [sys.executable, "-m", "benchmarks", "--quick", "--out", str(out), "--cache", str(cache)],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    figures = json.loads((out / "figures.json").read_text())
+    assert figures["quick"] is True
+    for chart in ("chart1", "chart2", "chart3", "chart4"):
+        assert figures[chart]["files"], chart
+        for name in figures[chart]["files"]:
+            assert (out / name).stat().st_size > 0, name
+    csvs, pngs = sorted(out.glob("*.csv")), sorted(out.glob("*.png"))
+    assert len(csvs) >= 9 and len(pngs) == 4
+    assert all(len(p.read_text().splitlines()) >= 2 for p in csvs)  # a header and at least one row
+    readme = (out / "README.md").read_text()
+    for png in pngs:
+        assert f"({png.name})" in readme
