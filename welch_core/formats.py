@@ -86,9 +86,7 @@ def save_stats(path: str | os.PathLike, stats: TileStats) -> None:
     try:
         _atomic_write(path, lambda f: np.savez(f, **arrays))
     except OSError as exc:
-        raise WelchInputError(
-            f"can't write statistics file {os.fspath(path)!r}: {exc.strerror or exc}"
-        ) from None
+        raise WelchInputError(f"can't write statistics file {os.fspath(path)!r}: {exc.strerror or exc}") from None
 
 
 def load_stats(path: str | os.PathLike) -> TileStats:
@@ -104,16 +102,12 @@ def load_stats(path: str | os.PathLike) -> TileStats:
     except FileNotFoundError:
         raise StatsFileError(f"statistics file {name!r} does not exist") from None
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-        raise StatsFileError(
-            f"{name!r} is not a readable statistics file ({type(exc).__name__}: {exc})"
-        ) from None
+        raise StatsFileError(f"{name!r} is not a readable statistics file ({type(exc).__name__}: {exc})") from None
     if not isinstance(arrays, dict) or str(arrays.get("format", "")) != FORMAT_NAME:
         raise StatsFileError(f"{name!r} is not a {FORMAT_NAME} file")
     version = int(arrays.get("version", -1))
     if version != FORMAT_VERSION:
-        raise StatsFileError(
-            f"{name!r} has format version {version}; this tool reads version {FORMAT_VERSION}"
-        )
+        raise StatsFileError(f"{name!r} has format version {version}; this tool reads version {FORMAT_VERSION}")
     try:
         return _stats_from_arrays(arrays)
     except (KeyError, ValueError, TypeError) as exc:
@@ -138,7 +132,7 @@ def _stats_from_arrays(arrays: dict) -> TileStats:
         image = arrays["mean_image"]
         if image.shape != (stats.height, stats.width, stats.channels):
             raise ValueError(f"mean image of shape {image.shape} doesn't fit {stats.height}x{stats.width}")
-        stats._pixel_sum = image.astype(np.float64) * stats.count
+        stats._pixel_sum = image.astype(np.float32) * np.float32(stats.count)
     return stats
 
 
