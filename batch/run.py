@@ -43,7 +43,7 @@ class RenderJob:
 
 
 #: Changes of the pass settings worth telling the user: they make the passes differ from the scene's own renders.
-NOTABLE_CHANGES = ("render.engine", "use_denoising", "use_adaptive_sampling", "time_limit", "use_layer_samples")
+NOTABLE_CHANGES = ("render.engine", "use_denoising", "use_adaptive_sampling", "time_limit")
 
 
 def prepare_scene(job: RenderJob, warn=None):

@@ -84,9 +84,7 @@ def colorize(values: npt.ArrayLike) -> np.ndarray:
     return rgb.astype(np.float32)
 
 
-def map_values(
-    pvalues: npt.ArrayLike, mode: str = "min", channel: int | None = None, qvalues=None
-) -> np.ndarray:
+def map_values(pvalues: npt.ArrayLike, mode: str = "min", channel: int | None = None, qvalues=None) -> np.ndarray:
     """Colour-map positions in [0, 1] per tile (NaN = excluded) from (tiles_y, tiles_x, channels) p-values."""
     if mode not in MAP_MODES:
         raise WelchInputError(f"`mode` must be one of {MAP_MODES}, got {mode!r}")
@@ -97,15 +95,11 @@ def map_values(
         return 1.0 - np.asarray(qvalues, dtype=float)
     if mode == "channel":
         if channel is None or not 0 <= channel < p.shape[-1]:
-            raise WelchInputError(
-                f"`channel` must be in 0..{p.shape[-1] - 1} for mode 'channel', got {channel!r}"
-            )
+            raise WelchInputError(f"`channel` must be in 0..{p.shape[-1] - 1} for mode 'channel', got {channel!r}")
         p = p[..., channel]
     else:
         with np.errstate(invalid="ignore"):
-            p = np.where(
-                np.isfinite(p).any(axis=-1), np.nanmin(np.where(np.isfinite(p), p, np.inf), axis=-1), np.nan
-            )
+            p = np.where(np.isfinite(p).any(axis=-1), np.nanmin(np.where(np.isfinite(p), p, np.inf), axis=-1), np.nan)
     if mode == "sqrt":
         return 1.0 - np.sqrt(p)
     if mode == "log10":
@@ -140,17 +134,13 @@ def tonemap(image: npt.ArrayLike, key: float = 0.18) -> np.ndarray:
     return srgb.astype(np.float32)
 
 
-def overlay(
-    base_rgb: npt.ArrayLike, map_rgb: npt.ArrayLike, opacity: float, mask: npt.ArrayLike | None = None
-):
+def overlay(base_rgb: npt.ArrayLike, map_rgb: npt.ArrayLike, opacity: float, mask: npt.ArrayLike | None = None):
     """Blend `map_rgb` over `base_rgb` with `opacity` in [0, 1]; where `mask` is False the base shows through."""
     if not 0.0 <= opacity <= 1.0:
         raise WelchInputError(f"`opacity` must be in [0, 1], got {opacity!r}")
     base, top = np.asarray(base_rgb, dtype=np.float32), np.asarray(map_rgb, dtype=np.float32)
     if base.shape != top.shape:
-        raise WelchInputError(
-            f"`base_rgb` and `map_rgb` must have the same shape, got {base.shape} and {top.shape}"
-        )
+        raise WelchInputError(f"`base_rgb` and `map_rgb` must have the same shape, got {base.shape} and {top.shape}")
     weight = np.full(base.shape[:2], opacity, dtype=np.float32)
     if mask is not None:
         weight = weight * np.asarray(mask, dtype=np.float32)

@@ -40,8 +40,8 @@ def effect_sizes(result: TTestResult, ref_mean: np.ndarray, alpha: float, n_test
         half = special.stdtrit(result.df, 1.0 - alpha / 2.0) * result.standard_error
         rel = result.mean_difference / scale
         level = alpha / max(n_tests, 1)
-        detectable = (
-            special.stdtrit(result.df, 1.0 - level / 2.0) + special.stdtrit(result.df, DETECTION_POWER)
-        ) * (result.standard_error / scale)
+        detectable = (special.stdtrit(result.df, 1.0 - level / 2.0) + special.stdtrit(result.df, DETECTION_POWER)) * (
+            result.standard_error / scale
+        )
         low, high = rel - half / scale, rel + half / scale  # a zero reference mean gives inf/NaN, not a warning
     return Effect(rel, low, high, detectable)

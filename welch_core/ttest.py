@@ -150,17 +150,13 @@ def welch_from_stats(
     return _finish(t, df, diff, np.sqrt(se2_total), few, (m1, v1, m2, v2), pvalue_method)
 
 
-def welch_ttest(
-    a: npt.ArrayLike, b: npt.ArrayLike, axis: int = 0, *, pvalue_method: str = "exact"
-) -> TTestResult:
+def welch_ttest(a: npt.ArrayLike, b: npt.ArrayLike, axis: int = 0, *, pvalue_method: str = "exact") -> TTestResult:
     """Welch's t-test on raw samples `a` (reference) and `b` (test) along `axis`; equals the summary path."""
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     return welch_from_stats(*_summary(a, axis), *_summary(b, axis), pvalue_method=pvalue_method)
 
 
-def paired_ttest(
-    a: npt.ArrayLike, b: npt.ArrayLike, axis: int = 0, *, pvalue_method: str = "exact"
-) -> TTestResult:
+def paired_ttest(a: npt.ArrayLike, b: npt.ArrayLike, axis: int = 0, *, pvalue_method: str = "exact") -> TTestResult:
     """Paired t-test on per-pass differences along `axis` (the same seeds on both sides), df = N - 1.
 
     The statistic is mean(a - b) / SE like `welch_ttest`; `mean_difference` is mean(b - a), test minus reference.
