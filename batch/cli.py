@@ -84,6 +84,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument(
         "--sampling-pattern",
         default="TABULATED_SOBOL",
+        choices=["TABULATED_SOBOL", "BLUE_NOISE", "AUTOMATIC"],
         help="Cycles sampling pattern, set explicitly and recorded (default TABULATED_SOBOL)",
     )
     r.add_argument(
