@@ -23,9 +23,11 @@ import argparse
 import hashlib
 import os
 import sys
+import time
 import traceback
 
 from ._siblings import welch_core as wc
+from .passes import ON_NAN
 from .seeds import parse_seeds
 
 EXIT_OK, EXIT_BIASED, EXIT_USAGE, EXIT_INCONCLUSIVE, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 4, 130
@@ -100,7 +102,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument(
         "--on-nan",
         default="stop",
-        choices=["stop", "skip", "keep"],
+        choices=ON_NAN,
         help="a pass with NaN/inf pixels: stop the run, skip the pass, or keep it (its tiles are excluded)",
     )
     r.add_argument(
@@ -128,7 +130,7 @@ def build_parser() -> argparse.ArgumentParser:
         "run counts as independent of every other (unpaired test)",
     )
     i.add_argument("--renderer", default="unknown", help="renderer name to record")
-    i.add_argument("--on-nan", default="stop", choices=["stop", "skip", "keep"])
+    i.add_argument("--on-nan", default="stop", choices=ON_NAN)
     i.add_argument("--out", required=True, metavar="STATS")
 
     for name, text in (
@@ -241,6 +243,7 @@ def cmd_render(args) -> int:
 
 
 def cmd_ingest(args) -> int:
+    from .passes import add_pass
     from .progress import Progress
 
     if args.seeds is not None and len(args.seeds) != len(args.passes):
@@ -250,16 +253,17 @@ def cmd_ingest(args) -> int:
     progress = Progress(len(args.passes), label="ingest")
     progress.start(0, args.out)
     for index, path in enumerate(args.passes):
+        start = time.perf_counter()
         image = first if index == 0 else wc.read_exr(path)
         seed = args.seeds[index] if args.seeds is not None else _content_seed(path)
         try:
-            stats.add_pass(image, seed, allow_nonfinite=args.on_nan == "keep")
+            if not add_pass(
+                stats, image, seed, args.on_nan, lambda text, path=path: progress.warning(f"{path}: {text}")
+            ):
+                continue
         except wc.WelchInputError as exc:
-            if args.on_nan != "skip" or "non-finite" not in str(exc):
-                raise wc.WelchInputError(f"{path}: {exc}") from None
-            progress.warning(f"{path}: {exc}: pass skipped")
-            continue
-        progress.pass_done(seed, 0.0)
+            raise wc.WelchInputError(f"{path}: {exc}") from None
+        progress.pass_done(seed, time.perf_counter() - start)
     wc.save_stats(args.out, stats)
     progress.finished(args.out, stats.n)
     return EXIT_OK

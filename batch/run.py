@@ -13,9 +13,8 @@ from dataclasses import dataclass, field
 from . import render
 from ._siblings import welch_core as wc
 from .overrides import apply_overrides, parse_override
+from .passes import ON_NAN, add_pass
 from .progress import Progress
-
-ON_NAN = ("stop", "skip", "keep")
 
 
 class RunError(Exception):
@@ -132,12 +131,10 @@ def render_passes(
             start = time.perf_counter()
             image = renderer.render(seed)
             try:
-                stats.add_pass(image, seed, allow_nonfinite=on_nan == "keep")
+                if not add_pass(stats, image, seed, on_nan, progress.warning):
+                    continue
             except wc.WelchInputError as exc:
-                if on_nan != "skip":
-                    raise RunError(f"{exc} (use --on-nan skip or keep to go on)") from None
-                progress.warning(f"{exc}: pass skipped")
-                continue
+                raise RunError(f"{exc} (use --on-nan skip or keep to go on)") from None
             pending += 1
             progress.pass_done(seed, time.perf_counter() - start)
             if out and pending >= checkpoint_every:
