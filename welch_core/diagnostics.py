@@ -4,11 +4,9 @@ the test against itself (§6: "first test the reference against itself")?
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
 from .tiles import TileStats
 
@@ -46,13 +44,15 @@ def normality(run: TileStats) -> Normality:
     if run.n < 3:
         nan = np.full(shape, np.nan)
         return Normality(nan, nan, nan, checked=False)
-    with np.errstate(invalid="ignore", divide="ignore"), warnings.catch_warnings():
-        # Constant tiles (black background) have no skewness: scipy warns and gives NaN, which is what we want.
-        warnings.simplefilter("ignore", RuntimeWarning)
-        g1 = stats.skew(sums, axis=0)
-        g2 = stats.kurtosis(sums, axis=0)
+    shifted = sums - sums[0]  # exactly zero for a constant tile, whose mean may be an ulp off
+    centred = shifted - shifted.mean(axis=0)
+    squared = centred * centred  # products, not **3 and **4, which numpy computes with pow(): 10x slower
+    m2, m3, m4 = squared.mean(axis=0), (squared * centred).mean(axis=0), (squared * squared).mean(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):  # constant tiles have no shape: NaN, as wanted
+        g1 = m3 / m2**1.5  # sample skewness (scipy.stats.skew with bias=True)
+        g2 = m4 / m2**2 - 3.0  # sample excess kurtosis (scipy.stats.kurtosis with bias=True)
         jb = run.n / 6.0 * (g1**2 + g2**2 / 4.0)  # Jarque & Bera (1980)
-        p = stats.chi2.sf(jb, 2)
+        p = np.exp(-jb / 2.0)  # the chi-square survival function with 2 degrees of freedom
     checked = run.n >= MIN_PASSES_FOR_NORMALITY
     return Normality(g1, g2, p if checked else np.full(shape, np.nan), checked)
 
