@@ -21,7 +21,7 @@ from .plotting import plt, save, write_csv
 from .pools import load_or_render, quiet_stdout, say
 
 #: Part of the cached measurements' key: bump it when a change here changes what is measured.
-COST_VERSION = 1
+COST_VERSION = 2
 
 #: Tile grids for the statistics' own cost; the last is a 4K frame (3840×2160) at 32² tiles.
 GRIDS = {16: (4, 4), 64: (8, 8), 256: (16, 16), 1024: (32, 32), 4096: (64, 64), 8040: (67, 120)}
@@ -101,7 +101,7 @@ def overhead(passes: int, resolution: int = 256) -> dict:
     with quiet_stdout():
         scene, info = _scene(resolution)
         stats = wc.TileStats(resolution, resolution, 32, 3, info)
-        bare, pipeline = [], []
+        bare, pipeline, io, accumulate = [], [], [], []
         with PassRenderer(scene) as renderer:
             for seed in range(3):  # warm-up: kernels, BVH, first sync
                 renderer.render(seed)
@@ -112,14 +112,19 @@ def overhead(passes: int, resolution: int = 256) -> dict:
                 bpy.ops.render.render(scene=scene.name)
                 bare.append(time.perf_counter() - start)
                 start = time.perf_counter()
-                stats.add_pass(renderer.render(seed), seed)
+                image = renderer.render(seed)
+                middle = time.perf_counter()
+                stats.add_pass(image, seed)
                 pipeline.append(time.perf_counter() - start)
+                io.append(renderer.io_seconds)
+                accumulate.append(time.perf_counter() - middle)
     b, p = float(np.median(bare)), float(np.median(pipeline))
-    return {"resolution": resolution, "spp": 1, "passes": passes, "bare_s": b, "pipeline_s": p, "overhead": p / b - 1}
+    return {"resolution": resolution, "spp": 1, "passes": passes, "bare_s": b, "pipeline_s": p, "overhead": p / b - 1,
+            "io_s": float(np.median(io)), "accumulate_s": float(np.median(accumulate))}  # fmt: skip
 
 
 def persistent_speedup(subdivisions: int, passes: int, resolution: int = 64) -> dict:
-    """Seconds per pass with persistent data off and on, corner scene plus a heavy mesh (20·4^s triangles)."""
+    """Seconds per pass with persistent data off and on, corner scene plus a heavy mesh (20·4^(s-1) triangles)."""
     import bmesh
     import bpy
 

@@ -274,8 +274,8 @@ def _pool_rows(pools: dict) -> list[dict]:
 
 
 def _plot(path: Path, cases, det_rows, fp_rows, summary) -> str:
-    fig = plt.figure(figsize=(16, 12.5))
-    grid = fig.add_gridspec(3, 3, height_ratios=[1, 1, 0.9], hspace=0.38, wspace=0.22)
+    fig = plt.figure(figsize=(16, 13))
+    grid = fig.add_gridspec(3, 3, height_ratios=[1, 1, 0.9], hspace=0.42, wspace=0.22, bottom=0.1, top=0.92)
     for i, c in enumerate(cases):
         ax = fig.add_subplot(grid[i // 3, i % 3])
         info = next(s for s in summary if s["case"] == c.name)
@@ -286,6 +286,9 @@ def _plot(path: Path, cases, det_rows, fp_rows, summary) -> str:
             x = [r["seconds"] for r in rows]
             ax.plot(x, [r["rate"] for r in rows], "o-", ms=3, color=COLORS[m], label=LABELS[m])
             ax.fill_between(x, [r["lo"] for r in rows], [r["hi"] for r in rows], color=COLORS[m], alpha=0.15, lw=0)
+            inconclusive = [r["inconclusive"] / r["trials"] for r in rows]
+            if any(inconclusive):  # where the trust mask withholds a verdict: the method's failure mode
+                ax.plot(x, inconclusive, ":", lw=1.2, color=COLORS[m])
         ax.axhline(TARGET, color="k", ls=":", lw=0.8)
         ax.axhline(ALPHA, color="k", ls="--", lw=0.6)
         ax.set_xscale("log")
@@ -300,10 +303,12 @@ def _plot(path: Path, cases, det_rows, fp_rows, summary) -> str:
     handles, labels = ax.get_legend_handles_labels()
     ax = fig.add_subplot(grid[2, :])
     _plot_false_positives(ax, fp_rows)
-    fig.legend(handles, labels, loc="upper center", ncol=4, fontsize=9, bbox_to_anchor=(0.5, 0.935))
+    handles.append(plt.Line2D([], [], ls=":", color="k"))
+    labels.append("share `inconclusive` (same colour: same method)")
+    fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=9, bbox_to_anchor=(0.5, 0.0))
     trials_note = f"{det_rows[0]['trials']} trials per point" if det_rows else ""
     fig.suptitle(
-        f"Chart 1: detection rate against render time (α = {ALPHA}; bands: 95 % Wilson; {trials_note})", y=0.965
+        f"Chart 1: detection rate against render time (α = {ALPHA}; bands: 95 % Wilson; {trials_note})", y=0.97
     )
     return save(fig, path)
 

@@ -61,7 +61,7 @@ class Budget:
     verdict_passes: tuple[int, ...]
     tile_counts: tuple[int, ...]
     overhead_passes: int
-    heavy_subdivisions: int  # icosphere subdivisions of the heavy mesh: 20 * 4**s triangles
+    heavy_subdivisions: int  # icosphere subdivisions of the heavy mesh: 20 * 4**(s - 1) triangles
     heavy_passes: int
 
     def pool(self, scene: str, *overrides: str, **changes) -> PoolSpec:
@@ -78,10 +78,10 @@ FULL = Budget(
     converged_spp=64,
     converged_passes=16,
     n_grid=(2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192),
-    trials=200,
-    null_trials=200,
+    trials=300,
+    null_trials=300,
     calibration_trials=1000,
-    stability_trials=400,
+    stability_trials=1000,
     pixel_trials=100,
     pvalue_grid=(41, 81),
     pvalue_size=1_000_000,
@@ -90,7 +90,7 @@ FULL = Budget(
     verdict_passes=(8, 16, 32, 64, 128, 200),
     tile_counts=(16, 64, 256, 1024, 4096, 8040),
     overhead_passes=40,
-    heavy_subdivisions=7,
+    heavy_subdivisions=8,
     heavy_passes=12,
 )
 

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import mpmath
 import numpy as np
+from scipy import special
 
 import welch_core as wc
 
@@ -47,8 +48,12 @@ def reference(n_nu: int, n_t: int, cache_dir: Path) -> dict:
     return memo_json(cache_dir, "pvalue-reference", digest(n_nu, n_t, 40), compute)
 
 
+#: True p-values at which the per-nu curves show each method's error: alpha of one test, and a Holm threshold.
+LEVELS = (1e-2, 1e-5)
+
+
 def errors(ref: dict) -> tuple[dict, dict]:
-    """Per method: the largest relative error of p and of log p; and per nu, the largest relative error of p."""
+    """Per method: the largest relative error of p and of log p; and per nu, the relative error at LEVELS."""
     nu, t = np.meshgrid(ref["nu"], ref["t"], indexing="ij")
     log10_true = np.array(ref["log10p"])
     true = 10.0**log10_true
@@ -66,7 +71,12 @@ def errors(ref: dict) -> tuple[dict, dict]:
             "rel_p_decisive": float(rel[decisive].max()),
             "rel_logp": float(rel_log[small].max()),
         }
-        per_nu[name] = np.where(ok, rel, 0.0).max(axis=1).tolist()
+    nu = np.logspace(0, 4, 200)
+    for level in LEVELS:
+        t = -special.stdtrit(nu, level / 2)  # |t| whose exact two-sided p is `level`
+        for name, (_label, f) in METHODS.items():
+            per_nu[f"{name}@{level:g}"] = (f(t, nu) / level - 1).tolist()
+    per_nu["nu"] = nu.tolist()
     return worst, per_nu
 
 
@@ -107,21 +117,27 @@ def _plot(path: Path, rows: list[dict], ref: dict, per_nu: dict) -> str:
         for i, r in enumerate(rows):
             y = r[key] if np.isfinite(r[key]) else cap
             ax.plot(r["ms_per_million"], max(y, 1e-17), "^" if y == cap else "o", color=f"C{i}", ms=8, label=r["label"])
-            ax.annotate("∞" if y == cap else f"{y:.1e}", (r["ms_per_million"], max(y, 1e-17)), xytext=(6, -3),
-                        textcoords="offset points", fontsize=8)  # fmt: skip
+            point = (r["ms_per_million"], max(y, 1e-17))
+            text = "∞" if y == cap else f"{y:.1e}"
+            ax.annotate(text, point, xytext=(6, -3 - 9 * (i % 2)), textcoords="offset points", fontsize=8)
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("ms per million tile-channel tests")
         ax.set_title(title, fontsize=10)
         ax.grid(alpha=0.3, which="both", lw=0.4)
     axes[0].legend(fontsize=8, loc="center right")
-    for i, (name, values) in enumerate(per_nu.items()):
-        axes[3].plot(ref["nu"], np.maximum(values, 1e-17), color=f"C{i}", label=METHODS[name][0])
+    for i, name in enumerate(METHODS):
+        for level, style in zip(LEVELS, ("-", "--"), strict=True):
+            values = np.abs(per_nu[f"{name}@{level:g}"])
+            axes[3].plot(per_nu["nu"], np.maximum(values, 1e-17), style, color=f"C{i}")
+    for level, style in zip(LEVELS, ("-", "--"), strict=True):
+        axes[3].plot([], [], style, color="k", label=f"at true p = {level:g}")
+    axes[3].legend(fontsize=8)
     axes[3].axvline(20, color="k", ls=":", lw=0.8)
     axes[3].set_xscale("log")
     axes[3].set_yscale("log")
     axes[3].set_xlabel("degrees of freedom ν")
-    axes[3].set_title("largest relative error of p over |t| ≤ 40, per ν", fontsize=10)
+    axes[3].set_title("|relative error of p| at a given true p, per ν", fontsize=10)
     axes[3].grid(alpha=0.3, which="both", lw=0.4)
     fig.suptitle(
         f"Chart 2: p-value methods (reference: mpmath, 40 digits, {len(ref['nu'])} ν × {len(ref['t'])} |t| grid)"

@@ -90,13 +90,13 @@ def chart2_lines(c2: dict) -> list[str]:
 
 def chart3_lines(c3: dict) -> list[str]:
     lines = [
-        "| situation | trials | `biased` rate [95 %] | `inconclusive` | untrusted tiles | outcome |",
-        "|---|---|---|---|---|---|",
+        "| situation | trials | `biased` rate [95 %] | `inconclusive` | untrusted tiles | median global p | outcome |",
+        "|---|---|---|---|---|---|---|",
     ]
     for r in c3["rows"]:
         lines.append(
             f"| {r['situation']} | {r['trials']} | {_pct(r['rate'])} [{_pct(r['lo'])}, {_pct(r['hi'])}] | "
-            f"{_pct(r['inconclusive'], 0)} | {_pct(r['untrusted_share'])} | {r['outcome']} |"
+            f"{_pct(r['inconclusive'], 0)} | {_pct(r['untrusted_share'])} | {r['median_p']:.2g} | {r['outcome']} |"
         )
     return lines
 

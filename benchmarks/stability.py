@@ -50,6 +50,7 @@ def _tally(outcomes: list[dict]) -> dict:
         "refused": sum(o["verdict"] == "refused" for o in outcomes) / total,
         "untrusted_share": float(np.mean([o["untrusted"] / max(o["valid"], 1) for o in outcomes])),
         "biased_with_flag": flagged_biased,
+        "median_p": float(np.median([o["p"] for o in outcomes])),
         "hist": hist.tolist(),
         "notes": dict(notes.most_common(4)),
     }
@@ -59,6 +60,7 @@ def _outcome(comparison: wc.Comparison) -> dict:
     p = comparison.pvalues[comparison.used]
     return {
         "verdict": comparison.verdict,
+        "p": float(comparison.p_value),
         "hist": np.histogram(p, BINS, (0, 1))[0],
         "untrusted": int((np.isfinite(comparison.tile_pvalues) & ~comparison.trusted).sum()),
         "valid": comparison.n_valid,
@@ -73,6 +75,7 @@ def _by_hand(result: wc.TTestResult, pvalues: np.ndarray) -> dict:
     finite = pvalues[np.isfinite(pvalues)]
     return {
         "verdict": "biased" if glob.rejected else "no_evidence",
+        "p": float(glob.pvalue),
         "hist": np.histogram(finite, BINS, (0, 1))[0],
         "untrusted": 0,
         "valid": int(np.isfinite(result.pvalue).any(axis=-1).sum()),
@@ -104,8 +107,8 @@ def compare_trials(
             try:
                 out.append(_outcome(wc.compare(a, b, ALPHA, test_kind=kind, pvalue_method=pvalue_method)))
             except wc.SeedOverlapError as error:
-                out.append({"verdict": "refused", "hist": np.zeros(BINS, int), "untrusted": 0, "valid": 0,
-                            "notes": [f"SeedOverlapError: {error}"]})  # fmt: skip
+                refused = {"verdict": "refused", "p": float("nan"), "hist": np.zeros(BINS, int), "untrusted": 0}
+                out.append(refused | {"valid": 0, "notes": [f"SeedOverlapError: {error}"]})
     return out
 
 
@@ -220,7 +223,7 @@ def _plot(path: Path, rows: list[dict]) -> str:
         rate = (
             f"biased {r['biased']}/{r['trials']} = {100 * r['rate']:.1f} % [{100 * r['lo']:.1f}, {100 * r['hi']:.1f}]"
         )
-        ax.set_title(f"{r['situation']}\n{rate}\n{r['outcome']}", fontsize=7.5)
+        ax.set_title(f"{r['situation']}\n{rate}, median global p {r['median_p']:.2g}\n{r['outcome']}", fontsize=7.5)
         ax.tick_params(labelsize=7)
     for ax in axes.ravel()[len(rows) :]:
         ax.axis("off")

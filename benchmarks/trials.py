@@ -23,7 +23,7 @@ import welch_core as wc
 ALPHA = 0.01
 BASE_TILE = 16
 #: Part of every cached trial result's key, with welch_core's source: bump it when a change here changes results.
-TRIALS_VERSION = 1
+TRIALS_VERSION = 2
 
 #: The tool's tests: (tile, test_kind, pvalue_method). Larger tiles are retiled from the tile-16 sums.
 COMPARE_METHODS = {
@@ -56,7 +56,9 @@ def wilson(k: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
     p = k / n
     centre = (p + z * z / (2 * n)) / (1 + z * z / n)
     half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return float(max(0.0, centre - half)), float(min(1.0, centre + half))
+    lo = 0.0 if k == 0 else max(0.0, centre - half)  # exact ends: rounding would leave 1e-18 at k = 0
+    hi = 1.0 if k == n else min(1.0, centre + half)
+    return float(lo), float(hi)
 
 
 @dataclass(frozen=True)
