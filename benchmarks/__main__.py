@@ -19,7 +19,7 @@ from pathlib import Path
 
 from . import cost, detection, plan, pvalues, readme, stability
 from .cache import DEFAULT_DIR, REPO
-from .pools import say
+from .pools import RENDERED, say
 
 CHARTS = {"1": detection, "2": pvalues, "3": stability, "4": cost}
 
@@ -64,6 +64,7 @@ def main(argv: list[str] | None = None) -> int:
             f"== chart {chart} done in {time.perf_counter() - t0:.0f} s: {', '.join(figures[f'chart{chart}']['files'])}"
         )
     figures["last_run_seconds"] = time.perf_counter() - start
+    figures["pools_rendered"] = len(set(RENDERED))
     figures["command"] = "python -m benchmarks" + (" --quick" if args.quick else "")
     figures_path.write_text(json.dumps(figures, indent=1, default=float))
     readme.write(args.out, figures)

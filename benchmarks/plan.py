@@ -89,7 +89,7 @@ FULL = Budget(
     cost_passes=5,
     verdict_passes=(8, 16, 32, 64, 128, 200),
     tile_counts=(16, 64, 256, 1024, 4096, 8040),
-    overhead_passes=40,
+    overhead_passes=100,
     heavy_subdivisions=8,
     heavy_passes=12,
 )

@@ -98,11 +98,16 @@ class Pool:
         return wc.TileStats.from_sums(self.sums(tile)[indices], seeds, size, size, tile, self.info)
 
 
+#: Keys of the pools rendered (not read from the cache) by this process, for the run's record.
+RENDERED: list[str] = []
+
+
 def load_or_render(spec: PoolSpec, cache_dir: Path, label: str = "") -> Pool:
     """The pool of `spec`, rendered now if the cache does not hold it."""
     folder = Path(cache_dir) / f"pool-{spec.key}"
     if not (folder / "meta.json").exists():
         render_pool(spec, folder, label)
+        RENDERED.append(spec.key)
     return Pool(spec, folder)
 
 

@@ -103,7 +103,21 @@ def run(b, cache_dir: Path, out_dir: Path) -> dict:
         write_csv(out_dir / "chart2_pvalue_methods.csv", rows),
         _plot(out_dir / "chart2_pvalue_methods.png", rows, ref, per_nu),
     ]
-    return {"files": files, "rows": rows, "grid": {"nu": len(ref["nu"]), "t": len(ref["t"])}}
+    return {"files": files, "rows": rows, "grid": {"nu": len(ref["nu"]), "t": len(ref["t"])}, "at": error_table()}
+
+
+def error_table(nus=(2, 5, 10, 20, 100), levels=LEVELS) -> list[dict]:
+    """Relative error of each method's p where the exact p is `level`, at a few nu (for the README)."""
+    out = []
+    for nu in nus:
+        for level in levels:
+            t = -special.stdtrit(float(nu), level / 2)
+            row = {"nu": nu, "p": level, "t": float(t)}
+            row |= {
+                name: float(f(np.array([t]), np.array([float(nu)]))[0] / level - 1) for name, (_l, f) in METHODS.items()
+            }
+            out.append(row)
+    return out
 
 
 def _plot(path: Path, rows: list[dict], ref: dict, per_nu: dict) -> str:

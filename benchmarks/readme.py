@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from .trials import ALPHA, LABELS
 
 WELCH = ("welch16", "welch32", "welch64")
@@ -13,6 +15,12 @@ def _s(x) -> str:
     if x is None:
         return "not reached"
     return f"{x:.2g} s" if x < 10 else f"{x:.0f} s"
+
+
+def _p(x: float) -> str:
+    if x != x:
+        return "—"
+    return "< 1e-300" if x == 0 else f"{x:.2g}"
 
 
 def _pct(x: float, digits: int = 1) -> str:
@@ -76,6 +84,68 @@ def fp_lines(c1: dict) -> list[str]:
     return lines
 
 
+def chart1_findings(c1: dict, det_rows: list[dict] | None = None) -> list[str]:
+    """Plain sentences: which methods stay calibrated, where each one fails."""
+    fp = c1["false_positives"]
+    out = []
+    tool = [r for r in fp if r["method"] not in ("rmse", "tilediff16")]
+    base = [r for r in fp if r["method"] in ("rmse", "tilediff16")]
+    worst = max(tool, key=lambda r: r["rate"])
+    above = [r for r in fp if r["lo"] > ALPHA]
+    out.append(
+        f"- **Calibration.** On unbiased pairs the tool's tests said `biased` in at most {_pct(worst['rate'])} of the "
+        f"trials ({LABELS[worst['method']]}, {worst['group']}; {worst['trials']} trials), below α = {_pct(ALPHA, 0)}: "
+        "the "
+        "verdict combines Holm's test and a KS test by Bonferroni, so it is conservative by design. The baselines "
+        f"sit at {_pct(min(r['rate'] for r in base))}–{_pct(max(r['rate'] for r in base))} on held-out trials, as "
+        "calibrated. "
+        + ("No method's false-positive rate lies clearly above α." if not above else
+           "Clearly above α: " + ", ".join(f"{r['method']} on {r['group']} ({_pct(r['rate'])})" for r in above) + ".")
+    )  # fmt: skip
+    summary = c1["summary"]
+    cases = {r["case"]: r for r in summary}
+    rows = {(r["case"], r["method"]): r["seconds_to_80"] for r in summary}
+    lower_noise = [c for c, r in cases.items() if r.get("variance_ratio", 1.0) < 0.98]
+    if lower_noise:
+        what = ", ".join(f"{cases[c]['label']} (variance ×{cases[c]['variance_ratio']:.2f})" for c in lower_noise)
+        missed = [c for c in lower_noise if rows[(c, "rmse")] is None]
+        out.append(
+            f"- **Where RMSE fails.** Several biases also lower the noise: {what}. Their RMSE is then *smaller* than "
+            "that of an unbiased render until the bias outweighs the remaining noise, so an RMSE threshold stays "
+            "silent for a long time"
+            + (
+                f" (never reached 80 % within the pool: {', '.join(cases[c]['label'] for c in missed)})"
+                if missed
+                else ""
+            )
+            + ". The RMSE also needs its converged reference, whose render time comes first on every curve."
+        )
+    paired = [(rows[(c, "paired32")], c) for c in cases if rows[(c, "paired32")] is not None]
+    if paired:
+        out.append(
+            "- **Paired test.** With the same seeds on both sides the shared noise cancels: "
+            + ", ".join(f"{cases[c]['label']} {_s(s)}" for s, c in paired)
+            + ". For a pure scale change (light ×1.005) the difference of two passes with the same seed is exactly "
+            "0.5 % of the pass, so two passes a side suffice; the paired test needs a renderer whose random numbers "
+            "follow the seed, which Cycles' do."
+        )
+    for case in cases:
+        for m in ("welch16", "welch32", "paired32"):
+            rs = [r for r in (det_rows or []) if r["case"] == case and r["method"] == m]
+            peak = max(rs, key=lambda r: r["inconclusive"] / r["trials"], default=None)
+            if peak and peak["inconclusive"] / peak["trials"] >= 0.25:
+                out.append(
+                    f"- **Where Welch fails: {cases[case]['label']}, {LABELS[m]}.** Up to "
+                    f"{_pct(peak['inconclusive'] / peak['trials'], 0)} of the trials end `inconclusive` "
+                    f"(n = {peak['n']} a side): at 1 spp the Welch samples of the tiles with fireflies are clearly "
+                    "not normal, the trust mask leaves those tiles out, and with more passes the normality check finds "
+                    "more of them. The tool says so instead of answering; larger tiles (64²: "
+                    f"{_s(rows[(case, 'welch64')])} to 80 %) or more spp per pass are the remedy."
+                )
+                break
+    return out
+
+
 def chart2_lines(c2: dict) -> list[str]:
     lines = ["| method | ms per million tests | max rel. error of p | same, p ≥ 1e-7 "
              "| max rel. error of log p, p < 0.01 |",
@@ -88,6 +158,78 @@ def chart2_lines(c2: dict) -> list[str]:
     return lines
 
 
+def chart2_findings(c2: dict, c1: dict | None = None) -> list[str]:
+    rows = {r["method"]: r for r in c2["rows"]}
+    ex, g20, gall, aall = rows["exact"], rows["gauss_nu20"], rows["gauss_all"], rows["as_erf_all"]
+    at = {(r["nu"], r["p"]): r for r in c2["at"]}
+    a5, a20 = at.get((5, 0.01)), at.get((20, 1e-05))
+    out = [
+        f"- **Exact Student t** (the default): largest relative error of p {ex['max_rel_err_p']:.1g} over the whole "
+        f"grid, of log p {ex['max_rel_err_log_p_small']:.1g}, at {ex['ms_per_million']:.0f} ms per million "
+        "tile-channel tests: a 4K frame at 32² tiles has 24 120 tile-channels, so the exact p costs a few "
+        "milliseconds a verdict. There is nothing to gain from an approximation.",
+        f"- **Gaussian where ν ≥ 20** ('gauss'): {g20['ms_per_million']:.0f} ms per million, "
+        + (
+            "no faster than the exact p (welch_core evaluates the exact p everywhere, then replaces it where ν ≥ 20). "
+            if g20["ms_per_million"] > 0.8 * ex["ms_per_million"]
+            else f"{ex['ms_per_million'] / g20['ms_per_million']:.1f}× faster than the exact p. "
+        )
+        + f"Its largest relative error among p ≥ 1e-7 on the grid is {g20['max_rel_err_p_decisive']:.2g}"
+        + (f"; at ν = 20, where the exact p is 1e-5, it gives {1e-5 * (1 + a20['gauss_nu20']):.2g}" if a20 else "")
+        + ": the tails of t with 20 degrees of freedom are far heavier than the Gaussian's, so at the small p that "
+        "Holm's correction compares against the approximation is anti-conservative." + (_gauss_fp(c1) if c1 else ""),
+        f"- **Gaussian / A&S everywhere**: {gall['ms_per_million']:.0f} and {aall['ms_per_million']:.0f} ms per "
+        f"million ({ex['ms_per_million'] / gall['ms_per_million']:.0f}× and "
+        f"{ex['ms_per_million'] / aall['ms_per_million']:.0f}× faster than exact), but wrong where ν is small"
+        + (
+            f" (at ν = 5, where the exact p is 0.01, the Gaussian gives {0.01 * (1 + a5['gauss_all']):.2g})"
+            if a5
+            else ""
+        )
+        + " and underflowing to 0 in the far tail (infinite error of log p). Chart 3 shows what that does to the "
+        "false-positive rate.",
+    ]
+    return out
+
+
+def _gauss_fp(c1: dict) -> str:
+    fp = {(r["group"], r["method"]): r for r in c1["false_positives"]}
+    pairs = [(g, fp[(g, "welch32")], fp[(g, "gauss32")]) for g, m in fp if m == "gauss32" and (g, "welch32") in fp]
+    text = ", ".join(f"{g} {_pct(w['rate'])} → {_pct(x['rate'])}" for g, w, x in pairs)
+    return f" On unbiased pairs (chart 1) it moved the false-positive rate at 32² tiles from exact to Gaussian: {text}."
+
+
+def chart3_findings(c3: dict) -> list[str]:
+    rows = c3["rows"]
+    silent = [r for r in rows if r["outcome"].startswith("SILENT")]
+    flagged = [r for r in rows if "flagged" in r["outcome"] or r["outcome"].startswith("refused")]
+    wrong = [r for r in rows if r["outcome"].startswith("miscalibrated")]
+    out = []
+    if silent:
+        out.append("- **Silent false positives (a defect of the tool, to be fixed):** " + "; ".join(
+            f"{r['situation']}: {_pct(r['rate'])} of {r['trials']}" for r in silent) + ".")  # fmt: skip
+    else:
+        out.append("- No situation produced silent false positives: every `biased` rate on unbiased pairs is "
+                   f"compatible with α = {_pct(ALPHA, 0)} or below it.")  # fmt: skip
+    for r in flagged:
+        out.append(f"- {r['situation']}: `biased` {_pct(r['rate'])}; {r['outcome']}.")
+    for r in wrong:
+        out.append(f"- {r['situation']}: `biased` {_pct(r['rate'])} [{_pct(r['lo'])}, {_pct(r['hi'])}], above α: "
+                   "this is why welch_core applies the Gaussian only where ν ≥ 20.")  # fmt: skip
+    power = [r for r in rows if r["expected"] == "power"]
+    if power:
+        detected = "; ".join(
+            f"{r['situation']}: detected {_pct(r['rate'], 0)}, median p {_p(r['median_p'])}" for r in power
+        )
+        out.append(
+            f"- Seeds and power: {detected}. Welch's formula on passes with the same seeds ignores their "
+            "correlation: on an unbiased pair every p is 1 (the p-values are not uniform), and for a bias its p-values "
+            "are orders of magnitude larger than the paired test's on the same passes. The tool refuses it "
+            "(SeedOverlapError)."
+        )
+    return out
+
+
 def chart3_lines(c3: dict) -> list[str]:
     lines = [
         "| situation | trials | `biased` rate [95 %] | `inconclusive` | untrusted tiles | median global p | outcome |",
@@ -96,7 +238,7 @@ def chart3_lines(c3: dict) -> list[str]:
     for r in c3["rows"]:
         lines.append(
             f"| {r['situation']} | {r['trials']} | {_pct(r['rate'])} [{_pct(r['lo'])}, {_pct(r['hi'])}] | "
-            f"{_pct(r['inconclusive'], 0)} | {_pct(r['untrusted_share'])} | {r['median_p']:.2g} | {r['outcome']} |"
+            f"{_pct(r['inconclusive'], 0)} | {_pct(r['untrusted_share'])} | {_p(r['median_p'])} | {r['outcome']} |"
         )
     return lines
 
@@ -104,7 +246,7 @@ def chart3_lines(c3: dict) -> list[str]:
 def chart4_lines(c4: dict) -> list[str]:
     o, h = c4["overhead"], c4["persistent"]
     passes = ", ".join(f"{r['resolution']}²: {r['total_s']:.3g} s" for r in c4["passes"])
-    verdicts = ", ".join(
+    verdicts = "; ".join(
         f"N = {r['passes']}: {r['compare_s'] * 1e3:.0f} ms + {r['report_s']:.2f} s" for r in c4["verdicts"]
     )
     core = ", ".join(
@@ -112,12 +254,19 @@ def chart4_lines(c4: dict) -> list[str]:
     )
     return [
         f"- Seconds per pass (corner, 1 spp; render + EXR write/read + accumulation): {passes}.",
-        f"- Seconds per verdict (compare + report) at 128² px and 32² tiles: {verdicts}.",
+        f"- Seconds per verdict (compare + report) at 128² px and 32² tiles: {verdicts}. The report (PNG maps and "
+        "histograms written by matplotlib) is almost all of it; the statistics take milliseconds.",
         f"- welch_core's `compare` alone (N = 32 a side): {core}.",
         f"- Pipeline overhead at {o['resolution']}², 1 spp, corner: the bare `bpy.ops.render.render()` takes "
         f"{o['bare_s'] * 1e3:.1f} ms, a whole pass (re-seed, render, EXR write and read, accumulate) "
         f"{o['pipeline_s'] * 1e3:.1f} ms: "
-        f"**{100 * o['overhead']:+.1f} %** (medians of {o['passes']} interleaved passes; the target was below 10 %).",
+        f"**{100 * o['overhead']:+.1f} %** (medians of {o['passes']} interleaved passes; the target was below 10 %)"
+        + (
+            f", of which the EXR write and read are {o['io_s'] * 1e3:.1f} ms and the accumulation "
+            f"{o['accumulate_s'] * 1e3:.1f} ms."
+            if "io_s" in o
+            else "."
+        ),
         f"- Persistent data on a heavy scene (corner + {h['triangles']:,} triangles, {h['resolution']}², 1 spp): "
         f"{h['median_off_s'] * 1e3:.0f} ms per pass off, {h['median_on_s'] * 1e3:.0f} ms on: **×{h['speedup']:.1f}** "
         f"(first pass {h['first_off_s']:.2f} s off, {h['first_on_s']:.2f} s on).",
@@ -149,7 +298,10 @@ def write(out_dir: Path, f: dict) -> None:
 
 def render(f: dict) -> str:
     b, m = f["budget"], f["machine"]
-    parts = [INTRO.format(command=f["command"], minutes=f.get("last_run_seconds", 0) / 60, cores=m["cores"],
+    minutes = f.get("last_run_seconds", 0) / 60
+    how = (f"from an empty cache in {minutes:.0f} minutes ({f['pools_rendered']} pools rendered)"
+           if f.get("pools_rendered") else f"in {minutes:.1f} minutes from cached pools")  # fmt: skip
+    parts = [INTRO.format(command=f["command"], how=how, cores=m["cores"],
                           cpu=m["cpu"] or "unknown CPU", bpy=m["bpy"], numpy=m["numpy"], scipy=m["scipy"],
                           quick=" (QUICK RUN: tiny pools, the numbers mean nothing)" if f["quick"] else "",
                           )]  # fmt: skip
@@ -157,25 +309,26 @@ def render(f: dict) -> str:
         c1 = f["chart1"]
         parts.append(CHART1.format(res=b["resolution"], passes=b["passes"], trials=b["trials"],
                                    null=b["null_trials"], calib=b["calibration_trials"], alpha=ALPHA,
-                                   conv_spp=b["converged_spp"] * b["converged_passes"]))  # fmt: skip
+                                   conv_spp=b["converged_spp"] * b["converged_passes"],
+                                   max_n=max(b["n_grid"])))  # fmt: skip
         parts += chart1_lines(c1) + ["", "False positives on unbiased pairs (all n pooled):", ""] + fp_lines(c1)
+        parts += ["", *chart1_findings(c1, c1.get("detection"))]
     if "chart2" in f:
         parts.append(CHART2.format(nu=f["chart2"]["grid"]["nu"], t=f["chart2"]["grid"]["t"]))
-        parts += chart2_lines(f["chart2"])
+        parts += chart2_lines(f["chart2"]) + [""] + chart2_findings(f["chart2"], f.get("chart1"))
     if "chart3" in f:
         parts.append(CHART3.format(trials=b["stability_trials"], pixel=b["pixel_trials"], alpha=ALPHA))
-        parts += chart3_lines(f["chart3"])
+        parts += chart3_lines(f["chart3"]) + [""] + chart3_findings(f["chart3"])
     if "chart4" in f:
         parts.append(CHART4)
         parts += chart4_lines(f["chart4"])
-    parts.append(FINDINGS_HEADER)
-    parts.append(SIZES.format(res=b["resolution"], passes=b["passes"]))
+    parts.append(sizes(f))
     return "\n".join(parts) + "\n"
 
 
 INTRO = """# Benchmarks: speed against accuracy, and stability where the methods fail{quick}
 
-Produced by `{command}` (from the repository root; `./dev bench` does the same) in {minutes:.0f} minutes on
+Produced by `{command}` (from the repository root; `./dev bench` does the same) {how} on
 {cores} cores ({cpu}), no GPU: Cycles on the CPU through the `bpy` {bpy} module, numpy {numpy}, scipy {scipy}.
 The machine was shared with other jobs, so seconds carry some noise; every render second on the charts is the
 median seconds of a pass times the passes used. The CSV files beside this README hold every plotted number;
@@ -185,8 +338,8 @@ How the trials work: each configuration is rendered once into a pool of passes (
 pixel; the reference and its biased variant use the same seeds), cached in `benchmarks/cache/`, and the trials
 draw passes from the pools. An unpaired trial takes the reference's passes from one random half of the seeds and
 the test's from the other half; a paired trial takes the same seeds from both pools. Trials resample one pool, so
-they are not fully independent (two trials at n = 200 a side share most of their passes); the number of trials
-sits in every CSV row and every rate has a 95 % Wilson interval.
+they are not fully independent (two trials at half the pool a side share most of their passes); the number of
+trials sits in every CSV row and every rate has a 95 % Wilson interval.
 """
 
 CHART1 = """
@@ -204,7 +357,7 @@ absolute tile-mean difference at 16² tiles (a thresholded tile-wise difference 
 for the baselines here (it comes from the pools); a user would have to pay for it, so the comparison favours
 them. A curve stops once two pass counts in a row found every trial biased.
 
-Render seconds (both sides) until 80 % of the trials say `biased` ("not reached": not within 200 passes a side):
+Render seconds (both sides) until 80 % of the trials say `biased` ("not reached": not within {max_n} passes a side):
 """
 
 CHART2 = """
@@ -233,19 +386,40 @@ CHART4 = """
 ![chart 4](chart4_cost.png)
 """
 
-FINDINGS_HEADER = ""
-
 SIZES = """
 ## Why these sizes suffice (model no more than a scene needs)
 
-- {res}×{res} px is the smallest square that holds four 64² tiles, the largest tile the paper uses; every effect
-  here is a change of a material, a light or an integrator setting that covers most of the frame, so more pixels
-  would add tiles of the same kind, not new information.
-- 1 spp per pass: one pass is one Welch sample of one Monte Carlo sample per pixel, as in the paper; at 1 spp a
-  128² pass costs a few hundredths of a second, so the pass count, not the resolution, sets the render budget.
-- {passes} passes per pool let unpaired trials use up to 200 passes a side with disjoint seeds; the hardest case
-  here needs fewer than that for the Welch test, and the RMSE baseline is given the same budget.
+- {res}×{res} px is the smallest square that holds four {half}² tiles (64² is the largest tile the paper uses).
+  Every effect here is a change of a material, a light or an integrator setting that covers most of the frame, so
+  more pixels would add tiles of the same kind, not new information.
+- 1 spp per pass: one pass is one Welch sample of one Monte Carlo sample per pixel, as in the paper. A pass costs
+  {pass_ms} of rendering, so the pass count, not the resolution, sets the budget, and the smallest
+  detectable change is set by how many passes one can afford.
+- {passes} passes per pool let unpaired trials use up to {half_pool} passes a side with disjoint seeds. {slowest}
 - The grey corner (walls 0.2, 60 W) is the paper's scene; the bright corner (walls 0.8, 600 W, bounce limits
   1024) exists because in the grey corner no indirect sample reaches the clamp of 10 and almost nothing survives
   beyond two bounces, so clamping and bounce limits change nothing there (measured: equal means to 7 digits).
+- The converged reference of the RMSE baseline has {conv_spp} spp ({conv_n} passes of {conv_pass} spp); a larger one
+  would cost proportionally more render time before the first RMSE verdict.
 """
+
+
+def sizes(f: dict) -> str:
+    b = f["budget"]
+    slowest = ""
+    pass_ms = "a few milliseconds"
+    if "chart1" in f:
+        summary = f["chart1"]["summary"]
+        spp = [p["seconds_per_pass"] for p in f["chart1"]["pools"] if p["spp"] == 1]
+        pass_ms = f"{1e3 * min(spp):.0f}–{1e3 * max(spp):.0f} ms"
+        best = {}
+        for r in summary:
+            if r["method"] in WELCH and r["passes_to_80"] is not None:
+                best[r["label"]] = min(best.get(r["label"], np.inf), r["passes_to_80"])
+        if best:
+            label = max(best, key=best.get)
+            slowest = (f"The slowest case for the Welch test ({label}) reaches 80 % detection at {best[label]:.0f} "
+                       "passes a side at its best tile size.")  # fmt: skip
+    return SIZES.format(res=b["resolution"], half=b["resolution"] // 2, passes=b["passes"], half_pool=b["passes"] // 2,
+                        pass_ms=pass_ms, slowest=slowest, conv_spp=b["converged_spp"] * b["converged_passes"],
+                        conv_pass=b["converged_spp"], conv_n=b["converged_passes"])  # fmt: skip

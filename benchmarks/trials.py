@@ -44,7 +44,7 @@ LABELS = {
     "gauss32": "Welch + paper's Gaussian (ν ≥ 20), 32²",
     "paired32": "paired t-test, 32² tiles",
     "rmse": "RMSE vs converged reference",
-    "tilediff16": "max |tile-mean difference|, 16²",
+    "tilediff16": "largest tile-mean difference, 16²",
 }
 
 
