@@ -130,19 +130,20 @@ def chart1_findings(c1: dict, det_rows: list[dict] | None = None) -> list[str]:
             "follow the seed, which Cycles' do."
         )
     for case in cases:
-        for m in ("welch16", "welch32", "paired32"):
+        peaks = []
+        for m in ("welch16", "welch32", "gauss32", "paired32"):
             rs = [r for r in (det_rows or []) if r["case"] == case and r["method"] == m]
             peak = max(rs, key=lambda r: r["inconclusive"] / r["trials"], default=None)
             if peak and peak["inconclusive"] / peak["trials"] >= 0.25:
-                out.append(
-                    f"- **Where Welch fails: {cases[case]['label']}, {LABELS[m]}.** Up to "
-                    f"{_pct(peak['inconclusive'] / peak['trials'], 0)} of the trials end `inconclusive` "
-                    f"(n = {peak['n']} a side): at 1 spp the Welch samples of the tiles with fireflies are clearly "
-                    "not normal, the trust mask leaves those tiles out, and with more passes the normality check finds "
-                    "more of them. The tool says so instead of answering; larger tiles (64²: "
-                    f"{_s(rows[(case, 'welch64')])} to 80 %) or more spp per pass are the remedy."
-                )
-                break
+                peaks.append(f"{LABELS[m]} up to {_pct(peak['inconclusive'] / peak['trials'], 0)} (n = {peak['n']})")
+        if peaks:
+            out.append(
+                f"- **Where Welch fails: {cases[case]['label']}.** Trials ending `inconclusive`: {'; '.join(peaks)}. "
+                "At 1 spp the Welch samples of the tiles with fireflies are clearly not normal, the trust mask leaves "
+                "those tiles out, and with more passes the normality check finds more of them, so the detection rate "
+                "falls again. The tool says so instead of answering; larger tiles (64²: "
+                f"{_s(rows[(case, 'welch64')])} to 80 %) or more spp per pass are the remedy."
+            )
     return out
 
 
@@ -332,7 +333,8 @@ Produced by `{command}` (from the repository root; `./dev bench` does the same) 
 {cores} cores ({cpu}), no GPU: Cycles on the CPU through the `bpy` {bpy} module, numpy {numpy}, scipy {scipy}.
 The machine was shared with other jobs, so seconds carry some noise; every render second on the charts is the
 median seconds of a pass times the passes used. The CSV files beside this README hold every plotted number;
-`figures.json` holds what this text quotes.
+`figures.json` holds what this text quotes. A second run reads the pools and the trial results back from
+`benchmarks/cache/` (keyed by configuration, bpy version and welch_core's source) and only redraws: seconds.
 
 How the trials work: each configuration is rendered once into a pool of passes (one seed each, 1 sample per
 pixel; the reference and its biased variant use the same seeds), cached in `benchmarks/cache/`, and the trials
