@@ -22,6 +22,7 @@ LIGHT_ENERGY_PATH = 'lights["Light"].energy'
 WALL_GREY = 0.2  # the paper's corner scene: diffuse grey 0.2 walls
 BOX = 2.0  # edge length of the box, metres
 LIGHT_SIZE = 0.5
+CYCLES_MAX_BOUNCES = 1024  # the properties' hard maximum
 LIGHT_ENERGY = 60.0  # watts; the mean pixel of ``corner`` comes out near 0.17
 
 
@@ -38,6 +39,10 @@ def _new_scene(name: str) -> bpy.types.Scene:
     cycles.sample_clamp_indirect = 0.0
     cycles.blur_glossy = 0.0
     cycles.caustics_reflective = cycles.caustics_refractive = True
+    # The default bounce limits (12 in all, 4 diffuse, 4 glossy) truncate paths: a bias of 0.7 % with bright walls
+    # (measured). At the hard maximum, Russian roulette ends paths long before a limit does.
+    for bounces in ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces"):
+        setattr(cycles, bounces, CYCLES_MAX_BOUNCES)
     cycles.use_denoising = False
     cycles.use_adaptive_sampling = False
     # scenes.new() gives 'AUTOMATIC' (blue noise); the startup file's pattern is the recorded default.

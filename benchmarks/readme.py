@@ -398,9 +398,10 @@ SIZES = """
   {pass_ms} of rendering, so the pass count, not the resolution, sets the budget, and the smallest
   detectable change is set by how many passes one can afford.
 - {passes} passes per pool let unpaired trials use up to {half_pool} passes a side with disjoint seeds. {slowest}
-- The grey corner (walls 0.2, 60 W) is the paper's scene; the bright corner (walls 0.8, 600 W, bounce limits
-  1024) exists because in the grey corner no indirect sample reaches the clamp of 10 and almost nothing survives
-  beyond two bounces, so clamping and bounce limits change nothing there (measured: equal means to 7 digits).
+- The grey corner (walls 0.2, 60 W) is the paper's scene; the bright corner (walls 0.8, 600 W; like every
+  built-in scene its bounce limits are at the maximum, 1024) exists because in the grey corner no indirect sample
+  reaches the clamp of 10 and almost nothing survives beyond two bounces, so clamping and bounce limits change
+  nothing there (measured: equal means to 7 digits).
 - The converged reference of the RMSE baseline has {conv_spp} spp ({conv_n} passes of {conv_pass} spp); a larger one
   would cost proportionally more render time before the first RMSE verdict.
 """

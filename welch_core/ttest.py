@@ -95,12 +95,14 @@ def two_sided_pvalue(t: npt.ArrayLike, df: npt.ArrayLike, method: str = "exact")
     """Two-sided p-value by `method` (see PVALUE_METHODS). The Gaussian forms apply only where df >= 20."""
     if method not in PVALUE_METHODS:
         raise WelchInputError(f"`pvalue_method` must be one of {PVALUE_METHODS}, got {method!r}")
-    p = pvalue_exact(t, df)
-    if method != "exact":
-        t, df = np.broadcast_arrays(np.asarray(t, dtype=float), np.asarray(df, dtype=float))
-        large = df >= GAUSS_MIN_DF  # paper §5.7: the approximation everywhere is not calibrated at small nu
-        approx = pvalue_gauss if method == "gauss" else pvalue_as_erf
-        p = np.where(large, approx(t), p)
+    if method == "exact":
+        return pvalue_exact(t, df)
+    t, df = (np.array(a, dtype=float) for a in np.broadcast_arrays(np.asarray(t, dtype=float), np.asarray(df)))
+    large = df >= GAUSS_MIN_DF  # paper §5.7: the approximation everywhere is not calibrated at small nu
+    approx = pvalue_gauss if method == "gauss" else pvalue_as_erf
+    p = np.empty(t.shape)
+    p[large] = approx(t[large])  # the cheap form where it applies, the exact one only elsewhere
+    p[~large] = pvalue_exact(t[~large], df[~large])
     return p
 
 
