@@ -20,13 +20,16 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ._siblings import batch
+
+MAX_SEED = batch.seeds.MAX_SEED  # Cycles' seed is a non-negative 32-bit int
+
 RUNNING = "RUNNING"
 FINISHED = "FINISHED"
 FAILED = "FAILED"
 CANCELLED = "CANCELLED"
 
 EVENTS = ("start", "pass", "warning", "done", "error")
-MAX_SEED = 2**31 - 1  # Cycles' seed is a non-negative 32-bit int
 MAX_FIRST_SEED = 2**30  # leaves room for two sides of up to 2**29 passes
 ERROR_LENGTH = 200  # characters kept of an error line: one line in the status bar and in a report
 TAIL_LINES = 20  # output lines kept per stream for error messages
