@@ -13,8 +13,8 @@ Inside Blender the same arguments follow ``--``:
 
     blender -b SCENE.blend --python-exit-code 1 --python batch/blender_entry.py -- render --seeds 0:64 ...
 
-Exit codes: 0 = done / no evidence of bias / lint clean, 1 = biased / lint found biased settings, 2 = usage or
-input error, 3 = inconclusive, 4 = internal error, 130 = interrupted (the checkpoint is kept).
+Exit codes: 0 = done / no evidence of bias / lint clean (demo: always 0 when it ran), 1 = biased / lint found biased
+settings, 2 = usage or input error, 3 = inconclusive, 4 = internal error, 130 = interrupted (the checkpoint is kept).
 """
 
 from __future__ import annotations
@@ -320,8 +320,8 @@ def cmd_lint(args) -> int:
 def cmd_demo(args) -> int:
     from .demo import run_demo
 
-    result = run_demo(args.out, passes=args.passes, resolution=args.resolution)
-    return VERDICT_EXIT[result.verdict]
+    run_demo(args.out, passes=args.passes, resolution=args.resolution)
+    return EXIT_OK  # the demo's bias is planted: finding it is the demo working, not a failure
 
 
 COMMANDS = {

@@ -243,3 +243,13 @@ def test_nan_pass_stops_the_run_and_keeps_what_was_done(tmp_path):
         render_passes(_NanEverySecondPass(), [0, 1, 2], stats, Progress(3), "stop", str(out))
     assert wc.load_stats(out).seeds == [0]
     assert os.path.getsize(out) > 0
+
+
+def test_demo_prints_the_verdict_and_the_report(tmp_path):
+    """The README's first command, made smaller: the planted bias (walls 0.21) is found and reported."""
+    done = batch("demo", "--out", tmp_path / "demo", "--passes", 8, "--resolution", 64, check=0)
+    assert "verdict: biased" in done.stdout
+    assert f"report: {tmp_path / 'demo' / 'report.html'}" in done.stdout
+    report = json.loads((tmp_path / "demo" / "report.json").read_text())
+    assert report["verdict"] == "biased" and report["n_ref"] == report["n_test"] == 8
+    assert {"reference.npz", "walls_0.21.npz", "overlay.png"} <= {p.name for p in (tmp_path / "demo").iterdir()}
