@@ -138,11 +138,12 @@ def chart1_findings(c1: dict, det_rows: list[dict] | None = None) -> list[str]:
                 peaks.append(f"{LABELS[m]} up to {_pct(peak['inconclusive'] / peak['trials'], 0)} (n = {peak['n']})")
         if peaks:
             out.append(
-                f"- **Where Welch fails: {cases[case]['label']}.** Trials ending `inconclusive`: {'; '.join(peaks)}. "
-                "At 1 spp the Welch samples of the tiles with fireflies are clearly not normal, the trust mask leaves "
-                "those tiles out, and with more passes the normality check finds more of them, so the detection rate "
-                "falls again. The tool says so instead of answering; larger tiles (64²: "
-                f"{_s(rows[(case, 'welch64')])} to 80 %) or more spp per pass are the remedy."
+                f"- **Where Welch struggles: {cases[case]['label']}.** Trials ending `inconclusive`: "
+                f"{'; '.join(peaks)}. At 1 spp the Welch samples of the tiles with fireflies are clearly not normal "
+                "and the trust mask leaves those tiles out while a mean of so few of them is not yet near normal "
+                "either; with more passes their shape measure (g1² + |g2|) / n falls below its limit, the tiles are "
+                "trusted again and the detection rate climbs on. The tool says so instead of answering; larger "
+                f"tiles (64²: {_s(rows[(case, 'welch64')])} to 80 %) or more spp per pass are the remedy."
             )
     return out
 
