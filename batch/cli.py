@@ -301,6 +301,9 @@ def _write_and_print(args, ref, test, result, ref_name: str, test_name: str) -> 
     print(verdict_line(report))
     for note in report["notes"]:
         print(f"  note: {note}")
+    selftest = report["reference_selftest"]
+    if selftest is not None and selftest["verdict"] != "no_evidence":
+        print(f"  warning: the reference against itself (two halves) is {selftest['verdict']}: trust this with care")
     print(f"report: {os.path.join(args.out, 'report.html')}")
     return VERDICT_EXIT[result.verdict]
 

@@ -36,7 +36,6 @@ def write_report(
     result: wc.Comparison,
     ref_name: str = "reference",
     test_name: str = "test",
-    extra: dict | None = None,
 ) -> dict:
     """Write every output of a comparison into `out_dir` (created if missing); return the report dict."""
     out = Path(out_dir)
@@ -45,13 +44,13 @@ def write_report(
         "reference": {"name": ref_name, "n": ref.n, "seeds": _seed_text(ref.seeds), "info": ref.info.to_json()},
         "test_run": {"name": test_name, "n": test.n, "seeds": _seed_text(test.seeds), "info": test.info.to_json()},
         "differences": wc.info_differences(ref.info, test.info),
+        "reference_selftest": reference_selftest(ref, result.alpha),
         "dropped_pixels": ref.dropped_pixels,
         "files": {},
     }
-    report |= extra or {}
     files = report["files"]
     plt = _pyplot()
-    files["pvalue_map_png"] = _save_rgb(out / "pvalue_map.png", _full_map(result, ref))
+    files["pvalue_map_png"] = _save_rgb(out / "pvalue_map.png", _full_map(result))
     wc.write_exr(out / "pvalues.exr", np.nan_to_num(result.pvalues, nan=-1.0))
     files["pvalues_exr"] = "pvalues.exr"
     files["overlay_png"] = _overlay_figure(
@@ -73,7 +72,17 @@ def _seed_text(seeds: list[int]) -> str:
     return format_seeds(list(seeds))
 
 
-def _full_map(result: wc.Comparison, run: wc.TileStats, mode: str = "min") -> np.ndarray:
+def reference_selftest(ref: wc.TileStats, alpha: float) -> dict | None:
+    """The paper's advice (§6): test the reference against itself first. Its two halves, compared; None when the
+    reference has fewer than 4 passes."""
+    if ref.n < 4:
+        return None
+    check = wc.compare(*wc.split_halves(ref), alpha=alpha, test_kind="welch")
+    summary = check.to_json()
+    return {key: summary[key] for key in ("verdict", "p_value", "n_ref", "n_test", "notes")}
+
+
+def _full_map(result: wc.Comparison, mode: str = "min") -> np.ndarray:
     tiles = wc.pvalue_rgb(result, mode)
     return wc.upscale_tiles(tiles, result.tile, result.height, result.width, fill=wc.colormap.EXCLUDED_GREY)
 
@@ -194,7 +203,14 @@ def _html(report: dict) -> str:
         f"<td>{_fmt_pct(t['rel_diff'])} [{_fmt_pct(t['ci_low'])}, {_fmt_pct(t['ci_high'])}]</td></tr>"
         for t in report["top_tiles"]
     )
-    notes = "".join(f"<li>{esc(n)}</li>" for n in report["notes"] + [f"differs: {d}" for d in report["differences"]])
+    selftest = report["reference_selftest"]
+    checks = [f"differs: {d}" for d in report["differences"]]
+    if selftest is not None:
+        checks.append(
+            f"the reference against itself (two halves of {report['n_ref']} passes): "
+            f"{VERDICT_WORDS[selftest['verdict']]}, p = {_fmt_p(selftest['p_value'])}"
+        )
+    notes = "".join(f"<li>{esc(n)}</li>" for n in report["notes"] + checks)
     excluded = ", ".join(f"{esc(k)}: {v}" for k, v in report["tile_channels"].items())
     images = "".join(
         f'<figure><img src="{esc(files[k])}" alt="{esc(label)}"><figcaption>{esc(label)}</figcaption></figure>'

@@ -224,3 +224,12 @@ def test_unwritable_report_folder_exits_2(tmp_path, capsys):
     capsys.readouterr()
     assert cli.main(["compare", a, b, "--out", str(blocker / "sub")]) == cli.EXIT_USAGE
     assert capsys.readouterr().err == f"error: {blocker / 'sub'}: Not a directory\n"
+
+
+def test_report_includes_the_reference_against_itself(tmp_path):
+    ref = ingest(tmp_path, "ref", range(0, 16))
+    test = ingest(tmp_path, "test", range(100, 116))
+    cli.main(["compare", ref, test, "--out", str(tmp_path / "r")])
+    selftest = json.loads((tmp_path / "r" / "report.json").read_text())["reference_selftest"]
+    assert selftest["verdict"] == "no_evidence" and selftest["n_ref"] == selftest["n_test"] == 8
+    assert "the reference against itself (two halves of 16 passes)" in (tmp_path / "r" / "report.html").read_text()
