@@ -41,7 +41,13 @@ def _new_scene(name: str) -> bpy.types.Scene:
     cycles.caustics_reflective = cycles.caustics_refractive = True
     # The default bounce limits (12 in all, 4 diffuse, 4 glossy) truncate paths: a bias of 0.7 % with bright walls
     # (measured). At the hard maximum, Russian roulette ends paths long before a limit does.
-    for bounces in ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces"):
+    for bounces in (
+        "max_bounces",
+        "diffuse_bounces",
+        "glossy_bounces",
+        "transmission_bounces",
+        "transparent_max_bounces",
+    ):
         setattr(cycles, bounces, CYCLES_MAX_BOUNCES)
     cycles.use_denoising = False
     cycles.use_adaptive_sampling = False

@@ -25,6 +25,11 @@ def test_factory_scene_has_the_biased_defaults(factory):
         ("cycles.use_denoising", True, False, BIASED),
         ('view_layers["ViewLayer"].cycles.use_denoising', True, False, BIASED),
         ("cycles.use_adaptive_sampling", True, False, BIASED),
+        ("cycles.max_bounces", 12, 1024, INFO),
+        ("cycles.diffuse_bounces", 4, 1024, INFO),
+        ("cycles.glossy_bounces", 4, 1024, INFO),
+        ("cycles.transmission_bounces", 12, 1024, INFO),
+        ("cycles.transparent_max_bounces", 8, 1024, INFO),
     ]
 
 
