@@ -138,15 +138,21 @@ def build_parser() -> argparse.ArgumentParser:
         ("selftest", "A/A test: one run's two halves against each other"),
     ):
         c = sub.add_parser(name, help=text, description=text + " Writes report.json, maps, histogram, report.html.")
-        c.add_argument("runs", nargs=2 if name == "compare" else 1, metavar="REF TEST" if name == "compare" else "RUN")
-        c.add_argument("--alpha", type=_alpha, default=DEFAULT_ALPHA, help="false-positive rate of a biased verdict")
+        if name == "compare":
+            c.add_argument("ref", metavar="REF", help="statistics file of the reference")
+            c.add_argument("test", metavar="TEST", help="statistics file of the run under test")
+        else:
+            c.add_argument("run", metavar="RUN", help="a statistics file with at least 4 passes")
+        c.add_argument(
+            "--alpha", type=_alpha, default=DEFAULT_ALPHA, help="false-positive rate of a biased verdict (default 0.01)"
+        )
         c.add_argument(
             "--pvalue-method",
             default="exact",
             choices=wc.PVALUE_METHODS,
             help="exact Student t (default); gauss/as_erf: the paper's approximations where nu >= 20",
         )
-        c.add_argument("--out", required=True, metavar="REPORT_DIR")
+        c.add_argument("--out", required=True, metavar="REPORT_DIR", help="folder for the report (created if missing)")
         if name == "compare":
             kind = c.add_mutually_exclusive_group()
             kind.add_argument(
@@ -279,18 +285,18 @@ def _content_seed(path: str) -> int:
 
 
 def cmd_compare(args) -> int:
-    ref, test = (wc.load_stats(path) for path in args.runs)
+    ref, test = wc.load_stats(args.ref), wc.load_stats(args.test)
     result = wc.compare(ref, test, args.alpha, args.kind, args.pvalue_method)
-    return _write_and_print(args, ref, test, result, *args.runs)
+    return _write_and_print(args, ref, test, result, args.ref, args.test)
 
 
 def cmd_selftest(args) -> int:
-    run = wc.load_stats(args.runs[0])
+    run = wc.load_stats(args.run)
     if run.n < 4:
-        raise wc.WelchInputError(f"selftest needs at least 4 passes to split into halves, {args.runs[0]} has {run.n}")
+        raise wc.WelchInputError(f"selftest needs at least 4 passes to split into halves, {args.run} has {run.n}")
     first, second = wc.split_halves(run)
     result = wc.compare(first, second, args.alpha, "welch", args.pvalue_method)
-    name = os.path.basename(args.runs[0])
+    name = os.path.basename(args.run)
     return _write_and_print(args, first, second, result, f"{name} (even passes)", f"{name} (odd passes)")
 
 
