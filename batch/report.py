@@ -138,7 +138,7 @@ def _histogram_figure(plt, path: Path, result: wc.Comparison) -> str:
         ax.set_title(f"{bins} bins")
     axes[0].set_ylabel("tile-channels")
     axes[0].legend(loc="upper right", fontsize=8)
-    fig.suptitle(f"p-values of {p.size} tile-channels; global p = {_fmt_p(result.p_value)}", fontsize=10)
+    fig.suptitle(f"p-values of {p.size} tile-channels; global p {_p_is(result.p_value)}", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
@@ -173,6 +173,12 @@ def _effect_figure(plt, path: Path, result: wc.Comparison) -> str:
     return path.name
 
 
+def _p_is(p) -> str:
+    """'= 0.0123', or '< 1e-300' where p underflowed, for text like 'global p = 0.0123'."""
+    text = _fmt_p(p)
+    return text if text.startswith("<") else f"= {text}"
+
+
 def _fmt_p(p) -> str:
     if p is None or not np.isfinite(p):
         return "n/a"
@@ -187,7 +193,7 @@ def verdict_line(report: dict) -> str:
     """One line for the terminal: the verdict, alpha, the global p and the test."""
     return (
         f"verdict: {VERDICT_WORDS[report['verdict']]} (alpha {report['alpha']:g}, "
-        f"global p {_fmt_p(report['p_value'])}, "
+        f"global p {_p_is(report['p_value'])}, "
         f"{report['test']} test, {report['tiles']['used']} of {report['tiles']['total']} tiles used, "
         f"n = {report['n_ref']} vs {report['n_test']})"
     )
@@ -208,7 +214,7 @@ def _html(report: dict) -> str:
     if selftest is not None:
         checks.append(
             f"the reference against itself (two halves of {report['n_ref']} passes): "
-            f"{VERDICT_WORDS[selftest['verdict']]}, p = {_fmt_p(selftest['p_value'])}"
+            f"{VERDICT_WORDS[selftest['verdict']]}, p {_p_is(selftest['p_value'])}"
         )
     notes = "".join(f"<li>{esc(n)}</li>" for n in report["notes"] + checks)
     excluded = ", ".join(f"{esc(k)}: {v}" for k, v in report["tile_channels"].items())
@@ -229,7 +235,7 @@ figure{{display:inline-block;margin:.5em;vertical-align:top}} img{{max-width:640
 table{{border-collapse:collapse}} td,th{{border:1px solid #ccc;padding:2px 8px;text-align:right}}</style></head>
 <body><h1>Does the test run converge to the reference image?</h1>
 <p class="verdict">{esc(VERDICT_WORDS[report["verdict"]])}</p>
-<p>alpha = {report["alpha"]:g}, global p = {_fmt_p(report["p_value"])} ({esc(report["method"])}).<br>
+<p>alpha = {report["alpha"]:g}, global p {_p_is(report["p_value"])} ({esc(report["method"])}).<br>
 Reference: {esc(report["reference"]["name"])}, n = {report["n_ref"]} passes (seeds {esc(report["reference"]["seeds"])});
 test: {esc(report["test_run"]["name"])}, n = {report["n_test"]} passes (seeds {esc(report["test_run"]["seeds"])}).<br>
 Tiles: {report["tiles"]["used"]} used of {report["tiles"]["total"]}, {report["tiles"]["untrusted"]} untrusted,
