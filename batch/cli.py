@@ -6,6 +6,7 @@
     python -m batch ingest PASS.exr [PASS.exr ...] --spp N [--tile 32] [--seeds ...] --out STATS
     python -m batch compare REF TEST [--alpha 0.01] [--paired|--unpaired] --out REPORT_DIR
     python -m batch selftest RUN [--alpha 0.01] --out REPORT_DIR
+    python -m batch merge STATS [STATS ...] --out STATS
     python -m batch lint SCENE.blend
     python -m batch demo [--out REPORT_DIR]
 
@@ -167,6 +168,14 @@ def build_parser() -> argparse.ArgumentParser:
             )
             c.set_defaults(kind="auto")
 
+    m = sub.add_parser(
+        "merge",
+        help="merge statistics files of one configuration (other seeds, other machines) into one",
+        description="Runs merge when they share the grid, spp and scene settings and have disjoint seeds.",
+    )
+    m.add_argument("runs", nargs="+", metavar="STATS", help="statistics files to merge")
+    m.add_argument("--out", required=True, metavar="STATS", help="merged statistics file to write")
+
     lint = sub.add_parser("lint", help="list settings that make Cycles biased or passes dependent")
     lint.add_argument("blend", metavar="SCENE.blend")
     lint.add_argument("--blend-scene", metavar="NAME")
@@ -305,6 +314,9 @@ def _write_and_print(args, ref, test, result, ref_name: str, test_name: str) -> 
 
     report = write_report(args.out, ref, test, result, ref_name, test_name)
     print(verdict_line(report))
+    detectable = report["median_min_detectable_rel_bias"]
+    if report["verdict"] == "no_evidence" and detectable is not None:
+        print(f"  a tile with a bias of {detectable:.1%} (median over tiles) would have been found with 80 % power")
     for note in report["notes"]:
         print(f"  note: {note}")
     selftest = report["reference_selftest"]
@@ -312,6 +324,18 @@ def _write_and_print(args, ref, test, result, ref_name: str, test_name: str) -> 
         print(f"  warning: the reference against itself (two halves) is {selftest['verdict']}: trust this with care")
     print(f"report: {os.path.join(args.out, 'report.html')}")
     return VERDICT_EXIT[result.verdict]
+
+
+def cmd_merge(args) -> int:
+    merged = wc.load_stats(args.runs[0])
+    for path in args.runs[1:]:
+        try:
+            merged = merged.merge(wc.load_stats(path))
+        except wc.WelchInputError as exc:
+            raise wc.WelchInputError(f"{path}: {exc}") from None
+    wc.save_stats(args.out, merged)
+    print(f"merge: {merged.n} passes from {len(args.runs)} files in {args.out}")
+    return EXIT_OK
 
 
 def cmd_lint(args) -> int:
@@ -338,6 +362,7 @@ COMMANDS = {
     "ingest": cmd_ingest,
     "compare": cmd_compare,
     "selftest": cmd_selftest,
+    "merge": cmd_merge,
     "lint": cmd_lint,
     "demo": cmd_demo,
 }

@@ -102,7 +102,7 @@ def test_blender_entry_script_parses_arguments_after_dashdash():
     assert "REF TEST" in done.stdout and "--paired" in done.stdout
 
 
-@pytest.mark.parametrize("command", ["render", "ingest", "compare", "selftest", "lint", "demo"])
+@pytest.mark.parametrize("command", ["render", "ingest", "compare", "selftest", "merge", "lint", "demo"])
 def test_every_command_has_help(command, capsys):
     with pytest.raises(SystemExit) as exit_info:
         cli.main([command, "--help"])
@@ -233,3 +233,25 @@ def test_report_includes_the_reference_against_itself(tmp_path):
     selftest = json.loads((tmp_path / "r" / "report.json").read_text())["reference_selftest"]
     assert selftest["verdict"] == "no_evidence" and selftest["n_ref"] == selftest["n_test"] == 8
     assert "the reference against itself (two halves of 16 passes)" in (tmp_path / "r" / "report.html").read_text()
+
+
+def test_merge_equals_one_run(tmp_path, capsys):
+    """Two halves ingested separately (other seeds, other machines) merge into the run of all passes."""
+    whole = wc.load_stats(ingest(tmp_path, "whole", range(0, 12)))
+    first = ingest(tmp_path, "first", range(0, 5))
+    second = ingest(tmp_path, "second", range(5, 12))
+    out = tmp_path / "merged.npz"
+    assert cli.main(["merge", first, second, "--out", str(out)]) == 0
+    merged = wc.load_stats(out)
+    assert merged.seeds == list(range(12))
+    np.testing.assert_allclose(merged.mean, whole.mean, rtol=1e-12)
+    np.testing.assert_allclose(merged.variance, whole.variance, rtol=1e-10)
+    assert cli.main(["merge", first, first, "--out", str(out)]) == cli.EXIT_USAGE
+    assert f"error: {first}: seed 0 is already in this run" in capsys.readouterr().err
+
+
+def test_no_evidence_says_what_could_have_been_found(tmp_path, capsys):
+    ref = ingest(tmp_path, "ref", range(0, 16))
+    other = ingest(tmp_path, "other", range(100, 116))
+    assert cli.main(["compare", ref, other, "--out", str(tmp_path / "r")]) == cli.EXIT_OK
+    assert "would have been found with 80 % power" in capsys.readouterr().out
