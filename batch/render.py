@@ -16,8 +16,8 @@ from pathlib import Path
 
 import bpy
 import numpy as np
-import OpenEXR
 
+from ._siblings import welch_core as wc
 from .overrides import jsonable
 from .scenes import SCENES, build_scene
 
@@ -255,7 +255,7 @@ class PassRenderer:
         bpy.ops.render.render(scene=self.scene.name)
         middle = time.perf_counter()
         bpy.data.images["Render Result"].save_render(self.path, scene=self.scene)
-        pixels = read_exr_rgb(self.path)
+        pixels = wc.read_exr(self.path)
         self.render_seconds = middle - start
         self.io_seconds = time.perf_counter() - middle
         return pixels
@@ -269,15 +269,6 @@ class PassRenderer:
 
     def __exit__(self, *_exc) -> None:
         self.close()
-
-
-def read_exr_rgb(path: str) -> np.ndarray:
-    """Read the R, G, B channels of a single-part EXR as an H×W×3 float32 array, top row first."""
-    channels = OpenEXR.File(path).channels()  # R, G, B (and A) come interleaved: faster than one by one
-    for name in ("RGB", "RGBA"):
-        if name in channels:
-            return channels[name].pixels[..., :3].astype(np.float32, copy=False)
-    raise ValueError(f"{path}: no R, G, B channels (has {', '.join(channels)})")
 
 
 # ---------------------------------------------------------------------------------------------------------------

@@ -151,6 +151,10 @@ def read_exr(path: str | os.PathLike) -> np.ndarray:
     if not os.path.exists(name):
         raise WelchInputError(f"EXR file {name!r} does not exist")
     try:
+        channels = OpenEXR.File(name).channels()  # plain R, G, B (A) come interleaved: the fast path for passes
+        for interleaved in ("RGB", "RGBA"):
+            if interleaved in channels:
+                return channels[interleaved].pixels[..., :3].astype(np.float32, copy=False)
         channels = OpenEXR.File(name, separate_channels=True).channels()
     except Exception as exc:  # OpenEXR raises bare RuntimeError/Exception for damaged files
         raise WelchInputError(f"{name!r} is not a readable EXR file ({exc})") from None
