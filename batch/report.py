@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ._siblings import welch_core as wc
+from .seeds import format_seeds
 
 VERDICT_WORDS = {"biased": "biased", "no_evidence": "no evidence of bias", "inconclusive": "inconclusive"}
 
@@ -41,8 +42,8 @@ def write_report(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     report = result.to_json() | {
-        "reference": {"name": ref_name, "n": ref.n, "seeds": _seed_text(ref.seeds), "info": ref.info.to_json()},
-        "test_run": {"name": test_name, "n": test.n, "seeds": _seed_text(test.seeds), "info": test.info.to_json()},
+        "reference": {"name": ref_name, "n": ref.n, "seeds": format_seeds(ref.seeds), "info": ref.info.to_json()},
+        "test_run": {"name": test_name, "n": test.n, "seeds": format_seeds(test.seeds), "info": test.info.to_json()},
         "differences": wc.info_differences(ref.info, test.info),
         "reference_selftest": reference_selftest(ref, result.alpha),
         "dropped_pixels": ref.dropped_pixels,
@@ -64,12 +65,6 @@ def write_report(
         json.dump(report, f, indent=2, allow_nan=False)
     (out / "report.html").write_text(_html(report))
     return report
-
-
-def _seed_text(seeds: list[int]) -> str:
-    from .seeds import format_seeds
-
-    return format_seeds(list(seeds))
 
 
 def reference_selftest(ref: wc.TileStats, alpha: float) -> dict | None:
