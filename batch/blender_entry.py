@@ -1,10 +1,11 @@
 """Run the batch tool inside Blender; the tool's arguments follow ``--``:
 
-    blender -b SCENE.blend --python-exit-code 1 --python batch/blender_entry.py -- render --seeds 0:64 --spp 1 \
+    blender -b SCENE.blend --python-exit-code 4 --python batch/blender_entry.py -- render --seeds 0:64 --spp 1 \
         --out ref.npz
 
 The folder that holds ``batch`` and ``welch_core`` (the repository, or the installed extension) is put on sys.path
-so both import as top-level packages; the process exits with the tool's exit code.
+so both import as top-level packages; the process exits with the tool's exit code. Rendering needs nothing a
+stock Blender (3.4 or later) lacks: numpy is bundled, and scipy is imported only by commands that compare.
 """
 
 import os
@@ -12,7 +13,10 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from batch.cli import argv_after_dashdash, main  # noqa: E402
-
 if __name__ == "__main__":
+    try:
+        from batch.cli import argv_after_dashdash, main
+    except BaseException as exc:  # any failure to start is internal
+        print(f"error: internal error: the batch tool can't start: {type(exc).__name__}: {exc}", file=sys.stderr)
+        sys.exit(4)
     sys.exit(main(argv_after_dashdash(sys.argv)))

@@ -1,7 +1,7 @@
 """Command line of the batch tool.
 
-    python -m batch render [SCENE.blend] [--scene corner|corner_glass|glossy] --seeds A:B|S1,S2,... --spp N
-                           [--tile 32] [--resolution W H] [--device CPU] [--set RNA.PATH=VALUE ...]
+    python -m batch render [SCENE.blend] [--scene NAME] --seeds A:B|S1,S2,... --spp N [--tile 32]
+                           [--resolution W H] [--device CPU] [--set RNA.PATH=VALUE ...] [--blender PATH]
                            [--resume] [--json-progress] --out STATS
     python -m batch ingest PASS.exr [PASS.exr ...] --spp N [--tile 32] [--seeds ...] --out STATS
     python -m batch compare REF TEST [--alpha 0.01] [--paired|--unpaired] --out REPORT_DIR
@@ -12,7 +12,7 @@
 
 Inside Blender the same arguments follow ``--``:
 
-    blender -b SCENE.blend --python-exit-code 1 --python batch/blender_entry.py -- render --seeds 0:64 ...
+    blender -b SCENE.blend --python-exit-code 4 --python batch/blender_entry.py -- render --seeds 0:64 ...
 
 Exit codes: 0 = done / no evidence of bias / lint clean (demo: always 0 when it ran), 1 = biased / lint found biased
 settings, 2 = usage or input error, 3 = inconclusive, 4 = internal error, 130 = interrupted (the checkpoint is kept).
@@ -27,30 +27,14 @@ import sys
 import time
 import traceback
 
+from . import job as jobs
 from ._siblings import welch_core as wc
-from .passes import ON_NAN
-from .seeds import parse_seeds
+from .errors import BatchError
 
 EXIT_OK, EXIT_BIASED, EXIT_USAGE, EXIT_INCONCLUSIVE, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 4, 130
-VERDICT_EXIT = {"no_evidence": EXIT_OK, "biased": EXIT_BIASED, "inconclusive": EXIT_INCONCLUSIVE}
 DEFAULT_ALPHA = 0.01
 
-
-def _seeds_arg(text: str) -> list[int]:
-    try:
-        return parse_seeds(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc).removeprefix("--seeds ")) from None
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
-    return value
+INPUT_ERRORS = (BatchError, wc.WelchInputError, OSError)
 
 
 def _alpha(text: str) -> float:
@@ -74,47 +58,12 @@ def build_parser() -> argparse.ArgumentParser:
         "render",
         help="render passes with Cycles into a statistics file",
         description="Render one pass per seed with Cycles (denoising, adaptive sampling, time limit, "
-        "compositing off; everything else as the scene has it) and accumulate per-tile statistics.",
+        "compositing off; everything else as the scene has it) and accumulate per-tile statistics. One process "
+        "writes an output at a time (a lock file next to it); Ctrl-C or SIGTERM stops after the current pass "
+        "and keeps what was rendered (continue with --resume).",
     )
-    r.add_argument("blend", nargs="?", metavar="SCENE.blend", help="scene file (default: the file Blender opened)")
-    r.add_argument("--scene", help="a built-in scene instead of a file: corner, corner_glass, glossy")
-    r.add_argument("--blend-scene", metavar="NAME", help="which scene of SCENE.blend (default: its active scene)")
-    r.add_argument("--seeds", type=_seeds_arg, required=True, help="A:B (half-open range) or S1,S2,...")
-    r.add_argument("--spp", type=_positive_int, required=True, help="samples per pixel per pass")
-    r.add_argument("--tile", type=_positive_int, default=32, help="tile edge in pixels (default 32, as the paper)")
-    r.add_argument("--resolution", type=_positive_int, nargs=2, metavar=("W", "H"), help="override the resolution")
-    r.add_argument("--device", default="CPU", choices=["CPU", "GPU"], help="Cycles device (default CPU)")
-    r.add_argument(
-        "--sampling-pattern",
-        default="TABULATED_SOBOL",
-        choices=["TABULATED_SOBOL", "BLUE_NOISE", "AUTOMATIC"],
-        help="Cycles sampling pattern, set explicitly and recorded (default TABULATED_SOBOL)",
-    )
-    r.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="RNA.PATH=VALUE",
-        help='property override, repeatable: cycles.sample_clamp_indirect=0, lights["Light"].energy=100, '
-        'materials["Walls"].node_tree.nodes["Diffuse BSDF"].inputs["Color"].default_value=0.21,0.21,0.21,1',
-    )
-    r.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")
-    r.add_argument(
-        "--on-nan",
-        default="stop",
-        choices=ON_NAN,
-        help="a pass with NaN/inf pixels: stop the run, skip the pass, or keep it (its tiles are excluded)",
-    )
-    r.add_argument(
-        "--checkpoint-every",
-        type=_positive_int,
-        default=8,
-        metavar="N",
-        help="save the statistics file every N passes (default 8)",
-    )
-    r.add_argument("--json-progress", action="store_true", help="one JSON line per pass on stdout, for programs")
-    r.add_argument("--out", required=True, metavar="STATS", help="statistics file to write (.npz)")
+    jobs.add_arguments(r)
+    r.add_argument("--json-progress", action="store_true", help="one JSON line per event on stdout, for programs")
 
     i = sub.add_parser(
         "ingest",
@@ -122,17 +71,17 @@ def build_parser() -> argparse.ArgumentParser:
         description="One EXR file per independent pass (its own seed), all the same size.",
     )
     i.add_argument("passes", nargs="+", metavar="PASS.exr")
-    i.add_argument("--spp", type=_positive_int, required=True, help="samples per pixel of each pass")
-    i.add_argument("--tile", type=_positive_int, default=32)
+    i.add_argument("--spp", type=jobs.positive_int, required=True, help="samples per pixel of each pass")
+    i.add_argument("--tile", type=jobs.positive_int, default=32, help="tile edge in pixels (default 32)")
     i.add_argument(
         "--seeds",
-        type=_seeds_arg,
+        type=jobs.seeds_arg,
         help="the passes' seeds, in file order; without it each pass gets an id from its content, so the "
         "run counts as independent of every other (unpaired test)",
     )
     i.add_argument("--renderer", default="unknown", help="renderer name to record")
-    i.add_argument("--on-nan", default="stop", choices=ON_NAN)
-    i.add_argument("--out", required=True, metavar="STATS")
+    i.add_argument("--on-nan", default="stop", choices=jobs.ON_NAN)
+    i.add_argument("--out", required=True, metavar="STATS", help="statistics file to write (must not exist)")
 
     for name, text in (
         ("compare", "compare two runs: is TEST biased against REF?"),
@@ -171,10 +120,11 @@ def build_parser() -> argparse.ArgumentParser:
     m = sub.add_parser(
         "merge",
         help="merge statistics files of one configuration (other seeds, other machines) into one",
-        description="Runs merge when they share the grid, spp and scene settings and have disjoint seeds.",
+        description="Runs merge when they are one configuration (scene, renderer and build, device, spp, tile, "
+        "sampling pattern, settings and overrides) and have disjoint seeds.",
     )
     m.add_argument("runs", nargs="+", metavar="STATS", help="statistics files to merge")
-    m.add_argument("--out", required=True, metavar="STATS", help="merged statistics file to write")
+    m.add_argument("--out", required=True, metavar="STATS", help="merged statistics file to write (must not exist)")
 
     lint = sub.add_parser("lint", help="list settings that make Cycles biased or passes dependent")
     lint.add_argument("blend", metavar="SCENE.blend")
@@ -182,8 +132,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     d = sub.add_parser("demo", help="the built-in corner scene against a biased variant (walls 0.21 instead of 0.2)")
     d.add_argument("--out", default=os.path.join("out", "demo"), metavar="REPORT_DIR")
-    d.add_argument("--passes", type=_positive_int, default=None, help="passes per side")
-    d.add_argument("--resolution", type=_positive_int, default=None, help="square image size in pixels")
+    d.add_argument("--passes", type=jobs.positive_int, default=None, help="passes per side")
+    d.add_argument("--resolution", type=jobs.positive_int, default=None, help="square image size in pixels")
     return parser
 
 
@@ -193,26 +143,23 @@ def argv_after_dashdash(argv: list[str]) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    # Paths with undecodable bytes and terminals that can't show every character must not cost a traceback.
+    for stream in (sys.stdout, sys.stderr):
+        if hasattr(stream, "reconfigure"):
+            stream.reconfigure(errors="backslashreplace")
     args = build_parser().parse_args(argv)
     try:
         return COMMANDS[args.command](args)
     except KeyboardInterrupt:
         print("interrupted: the statistics written so far are kept (continue with --resume)", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except INPUT_ERRORS as exc:
+        _report_error(args, _describe(exc))
+        return EXIT_USAGE
     except Exception as exc:
-        if _is_input_error(exc):
-            _report_error(args, _describe(exc))
-            return EXIT_USAGE
         traceback.print_exc()
         _report_error(args, f"internal error: {type(exc).__name__}: {exc}")
         return EXIT_INTERNAL
-
-
-def _is_input_error(exc: Exception) -> bool:
-    if isinstance(exc, (wc.WelchInputError, OSError)):
-        return True
-    names = {cls.__name__ for cls in type(exc).__mro__}
-    return bool(names & {"RunError", "RenderSetupError", "OverrideError", "LintError"})
 
 
 def _describe(exc: Exception) -> str:
@@ -230,56 +177,62 @@ def _report_error(args, message: str) -> None:
     print(f"error: {message}", file=sys.stderr)
 
 
+def _refuse_existing(path: str) -> None:
+    if os.path.exists(path):
+        raise BatchError(f"{path} already exists: choose another --out or remove it first")
+
+
 # -- commands ----------------------------------------------------------------------------------------------
 
 
 def cmd_render(args) -> int:
     from .progress import Progress
-    from .run import RenderJob, render_run
 
-    job = RenderJob(
-        out=args.out,
-        seeds=args.seeds,
-        spp=args.spp,
-        blend=args.blend,
-        scene=args.scene,
-        blend_scene=args.blend_scene,
-        tile=args.tile,
-        resolution=tuple(args.resolution) if args.resolution else None,
-        device=args.device,
-        sampling_pattern=args.sampling_pattern,
-        overrides=args.overrides,
-        resume=args.resume,
-        on_nan=args.on_nan,
-        checkpoint_every=args.checkpoint_every,
-    )
-    render_run(job, Progress(len(job.seeds), args.json_progress))
+    job = jobs.RenderJob.from_args(args)
+    progress = Progress(len(job.seeds), args.json_progress)
+    if job.blender:
+        from .launch import run_job
+
+        run_job(job, progress)
+    else:
+        from .run import render_run
+
+        render_run(job, progress)
     return EXIT_OK
 
 
 def cmd_ingest(args) -> int:
+    from .lock import OutputLock
     from .passes import add_pass
     from .progress import Progress
 
     if args.seeds is not None and len(args.seeds) != len(args.passes):
-        raise wc.WelchInputError(f"--seeds gives {len(args.seeds)} seeds for {len(args.passes)} files")
-    first = wc.read_exr(args.passes[0])
-    stats = wc.TileStats(first.shape[0], first.shape[1], args.tile, 3, wc.RunInfo(spp=args.spp, renderer=args.renderer))
-    progress = Progress(len(args.passes), label="ingest")
-    progress.start(0, args.out)
-    for index, path in enumerate(args.passes):
-        start = time.perf_counter()
-        image = first if index == 0 else wc.read_exr(path)
-        seed = args.seeds[index] if args.seeds is not None else _content_seed(path)
-        try:
-            if not add_pass(
-                stats, image, seed, args.on_nan, lambda text, path=path: progress.warning(f"{path}: {text}")
-            ):
-                continue
-        except wc.WelchInputError as exc:
-            raise wc.WelchInputError(f"{path}: {exc}") from None
-        progress.pass_done(seed, time.perf_counter() - start)
-    wc.save_stats(args.out, stats)
+        raise BatchError(f"--seeds gives {len(args.seeds)} seeds for {len(args.passes)} files")
+    _refuse_existing(args.out)
+    with OutputLock(args.out):
+        first = wc.read_exr(args.passes[0])
+        info = wc.RunInfo(spp=args.spp, renderer=args.renderer)
+        stats = wc.TileStats(first.shape[0], first.shape[1], args.tile, 3, info)
+        progress = Progress(len(args.passes), label="ingest")
+        progress.start(0, args.out)
+        negative = False
+        for index, path in enumerate(args.passes):
+            start = time.perf_counter()
+            image = first if index == 0 else wc.read_exr(path)
+            if not negative and (image < 0).any():
+                negative = True
+                progress.warning(f"{path} has negative pixel values (a filter with negative lobes?): they are kept")
+            seed = args.seeds[index] if args.seeds is not None else _content_seed(path)
+            try:
+                if not add_pass(
+                    stats, image, seed, args.on_nan, lambda text, path=path: progress.warning(f"{path}: {text}")
+                ):
+                    continue
+            except wc.WelchInputError as exc:
+                raise wc.WelchInputError(f"{path}: {exc}") from None
+            progress.pass_done(seed, time.perf_counter() - start)
+        _refuse_existing(args.out)
+        wc.save_stats(args.out, stats)
     progress.finished(args.out, stats.n)
     return EXIT_OK
 
@@ -302,7 +255,7 @@ def cmd_compare(args) -> int:
 def cmd_selftest(args) -> int:
     run = wc.load_stats(args.run)
     if run.n < 4:
-        raise wc.WelchInputError(f"selftest needs at least 4 passes to split into halves, {args.run} has {run.n}")
+        raise BatchError(f"selftest needs at least 4 passes to split into halves, {args.run} has {run.n}")
     first, second = wc.split_halves(run)
     result = wc.compare(first, second, args.alpha, "welch", args.pvalue_method)
     name = os.path.basename(args.run)
@@ -310,30 +263,31 @@ def cmd_selftest(args) -> int:
 
 
 def _write_and_print(args, ref, test, result, ref_name: str, test_name: str) -> int:
-    from .report import verdict_line, write_report
+    from . import summary as summaries
+    from .report import write_report
 
-    report = write_report(args.out, ref, test, result, ref_name, test_name)
-    print(verdict_line(report))
-    detectable = report["median_min_detectable_rel_bias"]
-    if report["verdict"] == "no_evidence" and detectable is not None:
-        print(f"  a tile with a bias of {detectable:.1%} (median over tiles) would have been found with 80 % power")
-    for note in report["notes"]:
-        print(f"  note: {note}")
-    selftest = report["reference_selftest"]
-    if selftest is not None and selftest["verdict"] != "no_evidence":
-        print(f"  warning: the reference against itself (two halves) is {selftest['verdict']}: trust this with care")
+    summary = summaries.summarize(result, ref, test, ref_name, test_name)
+    write_report(args.out, summary, result, ref, test)
+    print(summaries.verdict_line(summary))
+    for line in summaries.console_lines(summary):
+        print(f"  {line}")
     print(f"report: {os.path.join(args.out, 'report.html')}")
-    return VERDICT_EXIT[result.verdict]
+    return result.verdict.exit_code
 
 
 def cmd_merge(args) -> int:
+    _refuse_existing(args.out)
     merged = wc.load_stats(args.runs[0])
     for path in args.runs[1:]:
         try:
             merged = merged.merge(wc.load_stats(path))
         except wc.WelchInputError as exc:
             raise wc.WelchInputError(f"{path}: {exc}") from None
-    wc.save_stats(args.out, merged)
+    from .lock import OutputLock
+
+    with OutputLock(args.out):
+        _refuse_existing(args.out)
+        wc.save_stats(args.out, merged)
     print(f"merge: {merged.n} passes from {len(args.runs)} files in {args.out}")
     return EXIT_OK
 

@@ -10,10 +10,12 @@ import os
 import time
 
 from ._siblings import welch_core as wc
+from .job import RenderJob
 from .progress import Progress
-from .report import verdict_line, write_report
-from .run import RenderJob, render_run
+from .report import write_report
+from .run import render_run
 from .scenes import WALL_COLOR_PATH
+from .summary import summarize, verdict_line
 
 #: About a minute on 2 cores: 128×128 px, 32 passes of 4 spp a side, 32×32 tiles (16 tiles).
 DEMO_PASSES = 32
@@ -43,11 +45,12 @@ def run_demo(out_dir: str, passes: int | None = None, resolution: int | None = N
             os.remove(job.out)
         runs.append(render_run(job, Progress(len(job.seeds), label=label)))
     result = wc.compare(*runs, alpha=0.01)
-    report = write_report(out_dir, *runs, result, "corner, walls 0.20", "corner, walls 0.21")
+    summary = summarize(result, *runs, "corner, walls 0.20", "corner, walls 0.21")
+    write_report(out_dir, summary, result, *runs)
     print(
         f"demo: corner scene, walls 0.20 vs 0.21, {passes} passes of {DEMO_SPP} spp a side at {size}x{size} px, "
         f"{time.perf_counter() - start:.0f} s"
     )
-    print(verdict_line(report))
+    print(verdict_line(summary))
     print(f"report: {os.path.abspath(os.path.join(out_dir, 'report.html'))}")
     return result

@@ -11,7 +11,7 @@ import json
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
-from .overrides import jsonable
+from .rna import jsonable
 from .scenes import CYCLES_MAX_BOUNCES as MAX_BOUNCES
 
 BIASED = "biased"  # the converged image differs from the unbiased one
@@ -37,13 +37,15 @@ class Finding:
 
 @dataclass(frozen=True)
 class Rule:
-    """`path` relative to the scene (``view_layers[*]`` stands for every view layer); flagged when `flagged(value)`."""
+    """`path` relative to the scene (``view_layers[*]`` stands for every view layer); flagged when `flagged(value)`
+    and, if given, `applies(scene)` (a setting that has no effect unless another one is on)."""
 
     path: str
     flagged: Callable[[object], bool]
     unbiased: object
     severity: str
     explanation: str
+    applies: Callable[[object], bool] | None = None
 
 
 def _on(value) -> bool:
@@ -82,7 +84,8 @@ RULES: tuple[Rule, ...] = (
     Rule("cycles.use_denoising", _on, False, BIASED,
          f"the denoiser changes the expected image (mean x0.91) and is 10x slower per pass; {_TURNED_OFF}"),
     Rule("view_layers[*].cycles.use_denoising", _on, False, BIASED,
-         f"the view layer's denoising switch (denoises only with the scene's on too); {_TURNED_OFF}"),
+         f"the view layer's denoising switch, with the scene's denoising on; {_TURNED_OFF}",
+         applies=lambda scene: scene.cycles.use_denoising),
     Rule("cycles.use_adaptive_sampling", _on, False, BIASED,
          f"per-pixel sample counts depend on the rendered values, so the estimate is biased; {_TURNED_OFF}"),
     Rule("cycles.time_limit", _positive, 0.0, NOT_INDEPENDENT,
@@ -128,6 +131,8 @@ def lint_scene(scene, rules: tuple[Rule, ...] = RULES) -> list[Finding]:
     """
     findings = []
     for rule in rules:
+        if rule.applies is not None and not rule.applies(scene):
+            continue
         for path, value in _values(scene, rule.path):
             if rule.flagged(value):
                 findings.append(Finding(path, jsonable(value), rule.unbiased, rule.severity, rule.explanation))

@@ -41,6 +41,9 @@ import re
 from collections.abc import Iterable
 from dataclasses import dataclass
 
+from .errors import BatchError
+from .rna import jsonable
+
 DATA_COLLECTIONS = frozenset(
     {"objects", "materials", "lights", "worlds", "cameras", "meshes", "node_groups", "images", "textures"}
 )
@@ -51,7 +54,7 @@ _INT_VALUE = re.compile(r"[+-]?[0-9]+")
 _TRUE, _FALSE = frozenset({"true", "1"}), frozenset({"false", "0"})
 
 
-class OverrideError(ValueError):
+class OverrideError(BatchError, ValueError):
     """An override that cannot be parsed, resolved, validated or applied; the message is one line."""
 
 
@@ -352,21 +355,3 @@ def _enum_value(override: Override, prop, label: str):
         choices = ", ".join(f"'{i}'" for i in identifiers)
         raise _error(override.text, f"'{bad[0]}' is not a value of '{label}' (choose from {choices})")
     return set(items) if prop.is_enum_flag else items[0]
-
-
-def jsonable(value):
-    """An RNA value as JSON types: data blocks by name, arrays and sets as lists, floats as Python floats."""
-    if value is None or isinstance(value, bool | int | str):
-        return value
-    if isinstance(value, float):
-        return float(value)
-    import bpy
-
-    if isinstance(value, bpy.types.ID):
-        return value.name
-    if isinstance(value, set):
-        return sorted(value)
-    try:
-        return [jsonable(v) for v in value]
-    except TypeError:
-        return str(value)

@@ -5,10 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._siblings import welch_core as wc
-
-#: stop: refuse the pass (the run stops, what was accumulated is kept); skip: leave it out and go on;
-#: keep: accumulate it, and its tiles are excluded from the test with the reason non_finite.
-ON_NAN = ("stop", "skip", "keep")
+from .job import ON_NAN
 
 
 def add_pass(stats: wc.TileStats, image: np.ndarray, seed: int, on_nan: str, warn) -> bool:

@@ -1,20 +1,20 @@
-"""Progress of a render run: a human line per pass on stderr, or one JSON object per line on stdout for programs.
+"""Progress of a job for people (a line per event on stderr) or programs (`batch.events` as JSON lines on stdout).
 
-JSON events (the add-on reads them; other lines on stdout, such as Blender's own, are to be skipped):
-``{"event": "start", "total": n, "todo": k, "out": path}``,
-``{"event": "pass", "done": k, "total": n, "seed": s, "seconds": t, "eta": e}``,
-``{"event": "warning", "message": "..."}``, ``{"event": "done", "out": path, "passes": n}``,
-``{"event": "error", "message": "..."}``.
+A reader that goes away (``--json-progress | head -1``) does not stop the job: output stops, work goes on.
 """
 
 from __future__ import annotations
 
-import json
 import sys
+
+from . import events, fmt
+
+#: Recent passes the ETA is estimated from: the first passes include start-up costs.
+ETA_WINDOW = 16
 
 
 class Progress:
-    """Reports passes done, seconds per pass and the estimated time left."""
+    """Reports a job's events; `start`, `pass_done`, `warning`, `error` and `finished` make the events."""
 
     def __init__(self, total: int, json_lines: bool = False, label: str = "render"):
         self.total = total
@@ -22,43 +22,50 @@ class Progress:
         self.label = label
         self.done = 0
         self._times: list[float] = []
+        self._silent = False
 
-    def _emit(self, event: dict, text: str) -> None:
-        if self.json_lines:
-            print(json.dumps(event), flush=True)
-        else:
-            print(text, file=sys.stderr, flush=True)
+    def emit(self, event: events.Event) -> None:
+        """Write one event: a JSON line on stdout, or a line for people on stderr."""
+        if self._silent:
+            return
+        stream = sys.stdout if self.json_lines else sys.stderr
+        text = events.to_line(event) if self.json_lines else self.describe(event)
+        try:
+            print(text, file=stream, flush=True)
+        except BrokenPipeError:
+            self._silent = True  # nobody reads any more; the job itself goes on
+
+    def describe(self, event: events.Event) -> str:
+        label = self.label
+        match event:
+            case events.Started(total=total, todo=todo, out=out):
+                return f"{label}: {todo} of {total} passes to render into {out}"
+            case events.PassDone(done=done, total=total, seed=seed, seconds=seconds, eta=eta):
+                return f"{label}: pass {done}/{total} (seed {seed}) {seconds:.2f} s, ETA {fmt.duration(eta)}"
+            case events.Warned(message=message):
+                return f"warning: {message}"
+            case events.Failed(message=message):
+                return f"error: {message}"
+            case events.Finished(out=out, passes=passes):
+                return f"{label}: {passes} passes in {out}"
+        raise TypeError(f"not a progress event: {event!r}")
 
     def start(self, done: int, out: str) -> None:
         self.done = done
-        self._emit(
-            {"event": "start", "total": self.total, "todo": self.total - done, "out": out},
-            f"{self.label}: {self.total - done} of {self.total} passes to render into {out}",
-        )
+        self.emit(events.Started(total=self.total, todo=self.total - done, out=out))
 
     def pass_done(self, seed: int, seconds: float) -> None:
         self.done += 1
         self._times.append(seconds)
-        recent = self._times[-16:]  # the first passes include start-up costs; recent ones predict better
+        recent = self._times[-ETA_WINDOW:]
         eta = sum(recent) / len(recent) * (self.total - self.done)
-        self._emit(
-            {"event": "pass", "done": self.done, "total": self.total, "seed": seed, "seconds": seconds, "eta": eta},
-            f"{self.label}: pass {self.done}/{self.total} (seed {seed}) {seconds:.2f} s, ETA {_duration(eta)}",
-        )
+        self.emit(events.PassDone(done=self.done, total=self.total, seed=seed, seconds=seconds, eta=eta))
 
     def warning(self, message: str) -> None:
-        self._emit({"event": "warning", "message": message}, f"warning: {message}")
-
-    def finished(self, out: str, passes: int) -> None:
-        self._emit({"event": "done", "out": out, "passes": passes}, f"{self.label}: {passes} passes in {out}")
+        self.emit(events.Warned(message=message))
 
     def error(self, message: str) -> None:
-        self._emit({"event": "error", "message": message}, f"error: {message}")
+        self.emit(events.Failed(message=message))
 
-
-def _duration(seconds: float) -> str:
-    if seconds < 90:
-        return f"{seconds:.0f} s"
-    if seconds < 5400:
-        return f"{seconds / 60:.1f} min"
-    return f"{seconds / 3600:.1f} h"
+    def finished(self, out: str, passes: int) -> None:
+        self.emit(events.Finished(out=out, passes=passes))

@@ -1,8 +1,9 @@
 """Everything that touches bpy to render passes: open a scene, make it render unbiased passes, render one seed.
 
 A pass is one Cycles render with its own seed, saved as an uncompressed 32-bit EXR into a per-process temporary
-file (in ``/dev/shm`` where it exists) and read back with OpenEXR: the Render Result's pixels are empty in
-background mode (see ``BLENDER_FACTS.md``).
+file (in ``/dev/shm`` where it exists) and read back with numpy (`welch_core.exr`): the Render Result's pixels
+are empty in background mode (see ``BLENDER_FACTS.md``). Needs numpy and nothing else a stock Blender lacks;
+settings are feature-detected so Blender 3.4 to 5.0 work.
 """
 
 from __future__ import annotations
@@ -18,14 +19,14 @@ import bpy
 import numpy as np
 
 from ._siblings import welch_core as wc
-from .overrides import jsonable
-from .scenes import SCENES, build_scene
+from .errors import BatchError
+from .job import DEFAULT_SAMPLING_PATTERNS, GPU_BACKENDS
+from .rna import jsonable, render_size
+from .scenes import BUILDER_VERSION, SCENES, build_scene
 
-DEFAULT_PATTERN = "TABULATED_SOBOL"  # the startup scene's pattern; recorded with every run
 
-
-class RenderSetupError(Exception):
-    """A scene that cannot be rendered (missing or corrupt file, no camera, unknown name...)."""
+class RenderSetupError(BatchError):
+    """A scene that cannot be rendered (missing or corrupt file, no camera, unknown name, a refused setting)."""
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -103,36 +104,31 @@ def _choose_scene(name: str | None) -> bpy.types.Scene:
     return scene
 
 
-def resolution(scene: bpy.types.Scene) -> tuple[int, int]:
-    """Width and height in pixels of the scene's renders (after the resolution percentage)."""
-    render = scene.render
-    scale = render.resolution_percentage / 100
-    return max(int(render.resolution_x * scale), 1), max(int(render.resolution_y * scale), 1)
-
-
 def configure_unbiased(
     scene: bpy.types.Scene,
     device: str = "CPU",
     spp: int = 1,
     resolution: tuple[int, int] | None = None,
-    sampling_pattern: str = DEFAULT_PATTERN,
+    sampling_pattern: str | None = None,
 ) -> list[dict]:
     """Set what a pass needs: Cycles, samples, device, no denoising or adaptive sampling, float EXR output.
 
     The scene's own biased settings (clamping, Filter Glossy, bounces, ...) are left alone: they are what a
-    user tests; ``batch.lint`` reports them.
+    user tests; ``batch.lint`` reports them. Every value is read back: a value Blender would change (clamp,
+    refuse) raises RenderSetupError instead of rendering something other than what is recorded.
 
     Parameters
     ----------
     scene : bpy.types.Scene
     device : str
-        'CPU', 'GPU' (the first backend that has a device) or a backend from `GPU_BACKENDS`.
+        'CPU', 'GPU' (the first backend that has a device) or a backend from `batch.job.GPU_BACKENDS`.
     spp : int
         Samples per pixel per pass.
     resolution : (int, int) or None
         Width and height in pixels; None keeps the scene's.
-    sampling_pattern : str
-        Set explicitly because ``scenes.new()`` and the startup file disagree on the default.
+    sampling_pattern : str or None
+        Set explicitly because ``scenes.new()`` and the startup file disagree on the default; None takes the
+        first of `batch.job.DEFAULT_SAMPLING_PATTERNS` this Blender has.
 
     Returns
     -------
@@ -143,42 +139,115 @@ def configure_unbiased(
     if spp < 1:
         raise ValueError(f"`spp` must be a positive integer, got {spp}")
     changes: list[dict] = []
-    render, cycles = scene.render, scene.cycles
-    _set(changes, render, "render", "engine", "CYCLES")
+    _set(changes, scene.render, "render", "engine", "CYCLES")
     _set_device(changes, scene, device)
-    _set(changes, cycles, "cycles", "samples", spp)
-    _set(changes, cycles, "cycles", "use_layer_samples", "IGNORE")  # a view layer's samples would replace spp
-    _set(changes, cycles, "cycles", "use_denoising", False)
-    for layer in scene.view_layers:
-        _set(changes, layer.cycles, f"view_layers[{json.dumps(layer.name)}].cycles", "use_denoising", False)
-    _set(changes, cycles, "cycles", "use_adaptive_sampling", False)
-    _set(changes, cycles, "cycles", "time_limit", 0.0)
-    _set(changes, cycles, "cycles", "sampling_pattern", sampling_pattern)
-    # A compositor node tree changes the saved image; the sequencer could replace it.
-    _set(changes, render, "render", "use_compositing", False)
-    _set(changes, render, "render", "use_sequencer", False)
-    _set(changes, render, "render", "use_persistent_data", True)
-    _set(changes, render, "render", "use_single_layer", True)  # only the active view layer is saved
-    if resolution is not None:
-        _set(changes, render, "render", "resolution_x", int(resolution[0]))
-        _set(changes, render, "render", "resolution_y", int(resolution[1]))
-    _set(changes, render, "render", "resolution_percentage", 100)
-    _set(changes, render, "render", "use_border", False)
-    image = render.image_settings
-    for name, value in (("file_format", "OPEN_EXR"), ("color_depth", "32"), ("exr_codec", "NONE")):
-        _set(changes, image, "render.image_settings", name, value)
-    _set(changes, image, "render.image_settings", "color_mode", "RGB")  # alpha is not tested: less to write
+    pattern = _sampling_pattern(scene, sampling_pattern)
+    for struct, path, value in fixed_settings(scene, spp, resolution, pattern):
+        _set(changes, struct, path.rpartition(".")[0], path.rpartition(".")[2], value)
     return changes
+
+
+def fixed_settings(scene, spp: int, resolution, pattern: str) -> list[tuple[object, str, object]]:
+    """(struct, override path, value) of every setting a pass fixes, whatever the scene had. Settings this
+    Blender does not have are left out (they differ between 3.4 and 5.0)."""
+    render, cycles = scene.render, scene.cycles
+    wanted = [
+        (cycles, "cycles.samples", spp),
+        (cycles, "cycles.use_layer_samples", "IGNORE"),  # a view layer's samples would replace spp
+        (cycles, "cycles.use_denoising", False),
+        *(
+            (layer.cycles, f"view_layers[{json.dumps(layer.name)}].cycles.use_denoising", False)
+            for layer in scene.view_layers
+        ),
+        (cycles, "cycles.use_adaptive_sampling", False),
+        (cycles, "cycles.time_limit", 0.0),
+        (cycles, "cycles.sampling_pattern", pattern),
+        # A compositor node tree changes the saved image; the sequencer could replace it.
+        (render, "render.use_compositing", False),
+        (render, "render.use_sequencer", False),
+        (render, "render.use_persistent_data", True),
+        (render, "render.use_single_layer", True),  # only the active view layer is saved
+        *(
+            ((render, "render.resolution_x", int(resolution[0])), (render, "render.resolution_y", int(resolution[1])))
+            if resolution is not None
+            else ()
+        ),
+        (render, "render.resolution_percentage", 100),
+        (render, "render.use_border", False),
+        (render.image_settings, "render.image_settings.file_format", "OPEN_EXR"),
+        (render.image_settings, "render.image_settings.color_depth", "32"),
+        (render.image_settings, "render.image_settings.exr_codec", "NONE"),
+        (render.image_settings, "render.image_settings.color_mode", "RGB"),  # alpha is not tested: less to write
+    ]
+    return [
+        (struct, path, value) for struct, path, value in wanted if path.rpartition(".")[2] in struct.bl_rna.properties
+    ]
+
+
+#: The option a user should change instead of overriding a setting the job fixes.
+_OPTION_FOR = {
+    "cycles.samples": "--spp",
+    "render.resolution_x": "--resolution",
+    "render.resolution_y": "--resolution",
+    "cycles.sampling_pattern": "--sampling-pattern",
+    "cycles.device": "--device",
+}
+
+
+def check_fixed_settings(scene, spp: int, resolution, overrides: list[dict]) -> None:
+    """Raise RenderSetupError if the overrides (as `apply_overrides` returns them) changed a setting the job
+    fixes: what is rendered must be what is recorded."""
+    pattern = scene.cycles.sampling_pattern
+    expected = {path: value for _struct, path, value in fixed_settings(scene, spp, resolution, pattern)}
+    expected["cycles.device"] = scene.cycles.device
+    for change in overrides:
+        path = change["path"].removeprefix("scene.")
+        if path in expected and change["new"] != change["old"]:
+            hint = _OPTION_FOR.get(path)
+            advice = f"use {hint} instead" if hint else "every pass needs it as the batch tool sets it"
+            raise RenderSetupError(
+                f"--set {change['override']} changes {path} ({change['old']!r} -> {change['new']!r}), which the "
+                f"job fixes: {advice}"
+            )
+
+
+def _sampling_pattern(scene, requested: str | None) -> str:
+    """The pattern to render with: the requested one if this Blender has it, else the first default it has."""
+    cycles = scene.cycles
+    for candidate in [requested] if requested is not None else DEFAULT_SAMPLING_PATTERNS:
+        # 5.0 fills the items at run time (its RNA lists none), so a pattern is tried by setting it.
+        old = cycles.sampling_pattern
+        try:
+            cycles.sampling_pattern = candidate
+        except TypeError as exc:
+            if requested is not None:
+                choices = str(exc).rpartition(" not found in ")[2].strip("() \n").replace("'", "")
+                raise RenderSetupError(
+                    f"--sampling-pattern {requested} is not a pattern of Blender {bpy.app.version_string} "
+                    f"(it has {choices})"
+                ) from None
+            continue
+        cycles.sampling_pattern = old  # configure_unbiased sets (and records) it
+        return candidate
+    return cycles.sampling_pattern
 
 
 def _set(changes: list[dict], struct, prefix: str, name: str, value) -> None:
     old = getattr(struct, name)
     if old != value:
-        setattr(struct, name, value)
+        try:
+            setattr(struct, name, value)
+        except (TypeError, ValueError) as exc:
+            raise RenderSetupError(f"{prefix}.{name}: Blender refused {value!r} ({_last_line(exc)})") from None
+        new = getattr(struct, name)
+        if new != value and not (isinstance(value, float) and abs(new - value) <= 1e-6 * abs(value)):
+            raise RenderSetupError(f"{prefix}.{name}: Blender keeps {jsonable(new)!r} instead of {value!r}")
         changes.append({"path": f"{prefix}.{name}", "old": jsonable(old), "new": jsonable(value)})
 
 
-GPU_BACKENDS = ("OPTIX", "CUDA", "HIP", "METAL", "ONEAPI")
+def _last_line(exc: Exception) -> str:
+    lines = str(exc).strip().splitlines()
+    return lines[-1].strip() if lines else type(exc).__name__
 
 
 def _set_device(changes: list[dict], scene: bpy.types.Scene, device: str) -> None:
@@ -208,9 +277,47 @@ def _set_device(changes: list[dict], scene: bpy.types.Scene, device: str) -> Non
 # Rendering passes
 
 
-def _temp_dir() -> str:
+PASS_PREFIX = "welch-pass-"
+
+
+def pass_bytes(width: int, height: int, channels: int = 3) -> int:
+    """Size of an uncompressed float EXR pass (header aside): a line is its y, its size and its pixels."""
+    return height * (8 + 8 + 4 * channels * width)
+
+
+def choose_temp_dir(need: int) -> str:
+    """``/dev/shm`` (memory, no disk I/O) where it is writable and has room for `need` bytes twice, else the
+    system's temporary folder."""
     shm = "/dev/shm"
-    return shm if os.path.isdir(shm) and os.access(shm, os.W_OK) else tempfile.gettempdir()
+    if os.path.isdir(shm) and os.access(shm, os.W_OK) and _free_bytes(shm) >= 2 * need:
+        return shm
+    return tempfile.gettempdir()
+
+
+def _free_bytes(folder: str) -> int:
+    stat = os.statvfs(folder)
+    return stat.f_bavail * stat.f_frsize
+
+
+def remove_stale_passes(folder: str) -> list[str]:
+    """Delete temporary pass files left by processes that no longer run (a killed render)."""
+    removed = []
+    for path in Path(folder).glob(f"{PASS_PREFIX}*.exr"):
+        pid = path.name.removeprefix(PASS_PREFIX).split("-", 1)[0]
+        if pid.isdigit() and int(pid) != os.getpid() and not _alive(int(pid)):
+            path.unlink(missing_ok=True)
+            removed.append(str(path))
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True  # someone else's process
+    return True
 
 
 class PassRenderer:
@@ -223,7 +330,8 @@ class PassRenderer:
     scene : bpy.types.Scene
         A scene prepared with `configure_unbiased`.
     temp_dir : str, optional
-        Folder for the temporary EXR; defaults to ``/dev/shm`` where writable, else the system temp folder.
+        Folder for the temporary EXR; defaults to ``/dev/shm`` where writable with room, else the system temp
+        folder. Pass files of dead processes found there are deleted.
 
     Attributes
     ----------
@@ -233,7 +341,11 @@ class PassRenderer:
 
     def __init__(self, scene: bpy.types.Scene, temp_dir: str | None = None):
         self.scene = scene
-        handle, path = tempfile.mkstemp(prefix=f"welch-pass-{os.getpid()}-", suffix=".exr", dir=temp_dir or _temp_dir())
+        width, height = render_size(scene)
+        self.expected_bytes = pass_bytes(width, height)
+        folder = temp_dir or choose_temp_dir(self.expected_bytes)
+        remove_stale_passes(folder)
+        handle, path = tempfile.mkstemp(prefix=f"{PASS_PREFIX}{os.getpid()}-", suffix=".exr", dir=folder)
         os.close(handle)
         self.path = path
         self.render_seconds = 0.0
@@ -255,10 +367,24 @@ class PassRenderer:
         bpy.ops.render.render(scene=self.scene.name)
         middle = time.perf_counter()
         bpy.data.images["Render Result"].save_render(self.path, scene=self.scene)
-        pixels = wc.read_exr(self.path)
+        try:
+            pixels = wc.read_exr(self.path)
+        except wc.WelchInputError as exc:
+            raise BatchError(self._save_failure(exc)) from None
         self.render_seconds = middle - start
         self.io_seconds = time.perf_counter() - middle
         return pixels
+
+    def _save_failure(self, exc: Exception) -> str:
+        """Why a saved pass does not read back: most often a full temporary folder (Blender only prints it)."""
+        folder = os.path.dirname(self.path)
+        free = _free_bytes(folder)
+        if free < self.expected_bytes:
+            return (
+                f"no space left in {folder} to save a pass ({free / 2**20:.1f} MiB free, a pass needs "
+                f"{self.expected_bytes / 2**20:.1f} MiB)"
+            )
+        return f"Blender's saved pass does not read back: {exc}"
 
     def close(self) -> None:
         """Remove the temporary file."""
@@ -317,7 +443,8 @@ def scene_settings(scene: bpy.types.Scene) -> dict:
     for layer in scene.view_layers:
         prefix = f"view_layers[{json.dumps(layer.name)}]"
         for name in _VIEW_LAYER_SETTINGS:
-            out[f"{prefix}.{name}"] = jsonable(getattr(layer, name))
+            if name in layer.bl_rna.properties:
+                out[f"{prefix}.{name}"] = jsonable(getattr(layer, name))
         out[f"{prefix}.cycles.use_denoising"] = layer.cycles.use_denoising
     return out
 
@@ -326,6 +453,18 @@ def settings_hash(settings: dict) -> str:
     """SHA-256 (hex) of `settings` as sorted, compact JSON."""
     text = json.dumps(settings, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()
+
+
+def scene_id(builtin: str | None) -> str:
+    """What fixes the scene's content: ``builtin:<name>:<builder version>``, or ``sha256:<hex>`` of the .blend
+    file Blender has open (so a changed file is another configuration, whatever its name)."""
+    if builtin is not None:
+        return f"builtin:{builtin}:{BUILDER_VERSION}"
+    digest = hashlib.sha256()
+    with open(bpy.data.filepath, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            digest.update(chunk)
+    return f"sha256:{digest.hexdigest()}"
 
 
 def renderer_info(scene: bpy.types.Scene, device: str) -> dict:

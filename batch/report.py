@@ -12,10 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
+from . import fmt
 from ._siblings import welch_core as wc
-from .seeds import format_seeds
-
-VERDICT_WORDS = {"biased": "biased", "no_evidence": "no evidence of bias", "inconclusive": "inconclusive"}
 
 #: Few-bins histogram: at low sample counts it shows bias best (paper Fig. 16f).
 FEW_BINS = 5
@@ -32,23 +30,16 @@ def _pyplot():
 
 def write_report(
     out_dir: str | os.PathLike,
+    summary: dict,
+    result: wc.Comparison,
     ref: wc.TileStats,
     test: wc.TileStats,
-    result: wc.Comparison,
-    ref_name: str = "reference",
-    test_name: str = "test",
 ) -> dict:
-    """Write every output of a comparison into `out_dir` (created if missing); return the report dict."""
+    """Write every output of a comparison into `out_dir` (created if missing); return the report dict (the
+    summary of `batch.summary.summarize` and the files written)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    report = result.to_json() | {
-        "reference": {"name": ref_name, "n": ref.n, "seeds": format_seeds(ref.seeds), "info": ref.info.to_json()},
-        "test_run": {"name": test_name, "n": test.n, "seeds": format_seeds(test.seeds), "info": test.info.to_json()},
-        "differences": wc.info_differences(ref.info, test.info),
-        "reference_selftest": reference_selftest(ref, result.alpha),
-        "dropped_pixels": ref.dropped_pixels,
-        "files": {},
-    }
+    report = dict(summary, files={})
     files = report["files"]
     plt = _pyplot()
     files["pvalue_map_png"] = _save_rgb(out / "pvalue_map.png", _full_map(result))
@@ -61,20 +52,14 @@ def write_report(
     files["channels_png"] = _channels_figure(plt, out / "channels.png", result)
     files["effect_png"] = _effect_figure(plt, out / "effect.png", result)
     report["files"] = files
-    with open(out / "report.json", "w") as f:
-        json.dump(report, f, indent=2, allow_nan=False)
-    (out / "report.html").write_text(_html(report))
+    write_text(out / "report.json", json.dumps(report, indent=2, allow_nan=False))
+    write_text(out / "report.html", _html(report))
     return report
 
 
-def reference_selftest(ref: wc.TileStats, alpha: float) -> dict | None:
-    """The paper's advice (§6): test the reference against itself first. Its two halves, compared; None when the
-    reference has fewer than 4 passes."""
-    if ref.n < 4:
-        return None
-    check = wc.compare(*wc.split_halves(ref), alpha=alpha, test_kind="welch")
-    summary = check.to_json()
-    return {key: summary[key] for key in ("verdict", "p_value", "n_ref", "n_test", "notes")}
+def write_text(path: Path, text: str) -> None:
+    """Write a text file atomically (a failure leaves the previous file and raises)."""
+    wc.formats.atomic_write(path, lambda f: f.write(text.encode("utf-8")))
 
 
 def _full_map(result: wc.Comparison, mode: str = "min") -> np.ndarray:
@@ -104,7 +89,7 @@ def _overlay_figure(plt, path: Path, result: wc.Comparison, run: wc.TileStats, o
     fig, ax = plt.subplots(figsize=(6, 6 * run.height / run.width + 0.3))
     ax.imshow(np.clip(image, 0, 1), interpolation="nearest")
     _mark_significant(plt, ax, result)
-    ax.set_title(f"p-value map over the mean render ({VERDICT_WORDS[result.verdict]})")
+    ax.set_title(f"p-value map over the mean render ({result.verdict.text})")
     ax.axis("off")
     _legend(plt, fig, ax)
     fig.savefig(path, dpi=100, bbox_inches="tight")
@@ -133,7 +118,7 @@ def _histogram_figure(plt, path: Path, result: wc.Comparison) -> str:
         ax.set_title(f"{bins} bins")
     axes[0].set_ylabel("tile-channels")
     axes[0].legend(loc="upper right", fontsize=8)
-    fig.suptitle(f"p-values of {p.size} tile-channels; global p {_p_is(result.p_value)}", fontsize=10)
+    fig.suptitle(f"p-values of {p.size} tile-channels; global p {fmt.p_is(result.p_value)}", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
@@ -168,40 +153,14 @@ def _effect_figure(plt, path: Path, result: wc.Comparison) -> str:
     return path.name
 
 
-def _p_is(p) -> str:
-    """'= 0.0123', or '< 1e-300' where p underflowed, for text like 'global p = 0.0123'."""
-    text = _fmt_p(p)
-    return text if text.startswith("<") else f"= {text}"
-
-
-def _fmt_p(p) -> str:
-    if p is None or not np.isfinite(p):
-        return "n/a"
-    return "< 1e-300" if p == 0 else f"{p:.3g}"  # p underflows to 0 only far beyond any alpha
-
-
-def _fmt_pct(x) -> str:
-    return "n/a" if x is None else f"{x * 100:+.2f} %"
-
-
-def verdict_line(report: dict) -> str:
-    """One line for the terminal: the verdict, alpha, the global p and the test."""
-    return (
-        f"verdict: {VERDICT_WORDS[report['verdict']]} (alpha {report['alpha']:g}, "
-        f"global p {_p_is(report['p_value'])}, "
-        f"{report['test']} test, {report['tiles']['used']} of {report['tiles']['total']} tiles used, "
-        f"n = {report['n_ref']} vs {report['n_test']})"
-    )
-
-
 def _html(report: dict) -> str:
     esc = html.escape
     files = report["files"]
     colour = {"biased": "#b00020", "no_evidence": "#1b7f3b", "inconclusive": "#a06000"}[report["verdict"]]
     rows = "".join(
-        f"<tr><td>{t['x']},{t['y']}</td><td>{t['channel']}</td><td>{_fmt_p(t['pvalue'])}</td>"
-        f"<td>{_fmt_p(t['qvalue'])}</td><td>{'yes' if t['significant'] else 'no'}</td>"
-        f"<td>{_fmt_pct(t['rel_diff'])} [{_fmt_pct(t['ci_low'])}, {_fmt_pct(t['ci_high'])}]</td></tr>"
+        f"<tr><td>{t['x']},{t['y']}</td><td>{t['channel']}</td><td>{fmt.p_value(t['pvalue'])}</td>"
+        f"<td>{fmt.p_value(t['qvalue'])}</td><td>{'yes' if t['significant'] else 'no'}</td>"
+        f"<td>{fmt.percent(t['rel_diff'])} [{fmt.percent(t['ci_low'])}, {fmt.percent(t['ci_high'])}]</td></tr>"
         for t in report["top_tiles"]
     )
     selftest = report["reference_selftest"]
@@ -209,9 +168,9 @@ def _html(report: dict) -> str:
     if selftest is not None:
         checks.append(
             f"the reference against itself (two halves of {report['n_ref']} passes): "
-            f"{VERDICT_WORDS[selftest['verdict']]}, p {_p_is(selftest['p_value'])}"
+            f"{wc.Verdict(selftest['verdict']).text}, p {fmt.p_is(selftest['p_value'])}"
         )
-    notes = "".join(f"<li>{esc(n)}</li>" for n in report["notes"] + checks)
+    notes = "".join(f"<li>{esc(n)}</li>" for n in report["notes"] + report["warnings"] + checks)
     excluded = ", ".join(f"{esc(k)}: {v}" for k, v in report["tile_channels"].items())
     images = "".join(
         f'<figure><img src="{esc(files[k])}" alt="{esc(label)}"><figcaption>{esc(label)}</figcaption></figure>'
@@ -229,8 +188,8 @@ def _html(report: dict) -> str:
 figure{{display:inline-block;margin:.5em;vertical-align:top}} img{{max-width:640px;image-rendering:pixelated}}
 table{{border-collapse:collapse}} td,th{{border:1px solid #ccc;padding:2px 8px;text-align:right}}</style></head>
 <body><h1>Does the test run converge to the reference image?</h1>
-<p class="verdict">{esc(VERDICT_WORDS[report["verdict"]])}</p>
-<p>alpha = {report["alpha"]:g}, global p {_p_is(report["p_value"])} ({esc(report["method"])}).<br>
+<p class="verdict">{esc(report["verdict_text"])}</p>
+<p>alpha = {report["alpha"]:g}, global p {fmt.p_is(report["p_value"])} ({esc(report["method"])}).<br>
 Reference: {esc(report["reference"]["name"])}, n = {report["n_ref"]} passes (seeds {esc(report["reference"]["seeds"])});
 test: {esc(report["test_run"]["name"])}, n = {report["n_test"]} passes (seeds {esc(report["test_run"]["seeds"])}).<br>
 Tiles: {report["tiles"]["used"]} used of {report["tiles"]["total"]}, {report["tiles"]["untrusted"]} untrusted,

@@ -5,7 +5,8 @@ box lit by a constant square light. ``corner_glass`` adds a glass sphere (the ca
 ``glossy`` gives Filter Glossy and the caustics toggles something to act on.
 
 Every builder leaves Cycles' biased-by-default settings at their unbiased values, so the built-in scenes are
-unbiased as built; the batch tool's render settings (device, spp, output format) are applied separately.
+unbiased as built; the batch tool's render settings (device, spp, output format) are applied separately. The
+builders run in Blender 3.4 to 5.0 (node trees are created where an older Blender starts without one).
 """
 
 from __future__ import annotations
@@ -15,9 +16,14 @@ from collections.abc import Callable
 import bpy
 from mathutils import Vector
 
+from .errors import BatchError
+
 # Override paths for the corner scene's knobs (the syntax of ``batch.overrides``).
 WALL_COLOR_PATH = 'materials["Walls"].node_tree.nodes["Diffuse BSDF"].inputs["Color"].default_value'
 LIGHT_ENERGY_PATH = 'lights["Light"].energy'
+
+#: Part of a built-in scene's identity in a run record: raise it whenever a builder changes what it builds.
+BUILDER_VERSION = 1
 
 WALL_GREY = 0.2  # the paper's corner scene: diffuse grey 0.2 walls
 BOX = 2.0  # edge length of the box, metres
@@ -51,23 +57,29 @@ def _new_scene(name: str) -> bpy.types.Scene:
         setattr(cycles, bounces, CYCLES_MAX_BOUNCES)
     cycles.use_denoising = False
     cycles.use_adaptive_sampling = False
-    # scenes.new() gives 'AUTOMATIC' (blue noise); the startup file's pattern is the recorded default.
-    cycles.sampling_pattern = "TABULATED_SOBOL"
+    # The sampling pattern is the render job's to set (scenes.new() gives 'AUTOMATIC', blue noise, in 5.0).
     cycles.samples = 1
     for layer in scene.view_layers:
         layer.cycles.use_denoising = False
-    # Black background: nothing but the light illuminates the box. Worlds always use nodes in Blender 5.0.
+    # Black background: nothing but the light illuminates the box.
     world = bpy.data.worlds.new("World")
     world.color = (0.0, 0.0, 0.0)
-    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    node_tree(world).nodes["Background"].inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
     scene.world = world
     return scene
+
+
+def node_tree(block) -> bpy.types.NodeTree:
+    """The node tree of a material or world: Blender 5.0 always has one, 3.4 only once `use_nodes` is set."""
+    if block.node_tree is None:
+        block.use_nodes = True
+    return block.node_tree
 
 
 def _diffuse(name: str, grey: float) -> bpy.types.Material:
     """A Lambertian material; its colour is the input 'Color' of the node 'Diffuse BSDF'."""
     material = bpy.data.materials.new(name)
-    nodes = material.node_tree.nodes
+    nodes = node_tree(material).nodes
     nodes.clear()
     bsdf = nodes.new("ShaderNodeBsdfDiffuse")
     bsdf.name = "Diffuse BSDF"
@@ -100,7 +112,7 @@ def _sphere(scene, name: str, center, radius: float, material) -> bpy.types.Obje
     bmesh.ops.create_uvsphere(bm, u_segments=48, v_segments=24, radius=radius)
     bm.to_mesh(mesh)
     bm.free()
-    mesh.shade_smooth()
+    mesh.polygons.foreach_set("use_smooth", [True] * len(mesh.polygons))  # shade_smooth() is 3.6+
     obj = _link(scene, name, mesh, material)
     obj.location = center
     return obj
@@ -142,7 +154,7 @@ def _corner_scene() -> bpy.types.Scene:
 def _corner_glass_scene() -> bpy.types.Scene:
     scene = _corner("corner_glass")
     glass = bpy.data.materials.new("Glass")
-    nodes = glass.node_tree.nodes
+    nodes = node_tree(glass).nodes
     nodes.clear()
     bsdf = nodes.new("ShaderNodeBsdfGlass")
     bsdf.inputs["Roughness"].default_value = 0.0
@@ -156,7 +168,7 @@ def _corner_glass_scene() -> bpy.types.Scene:
 def _checker_floor() -> bpy.types.Material:
     """A glossy Principled floor whose base colour is a procedural checker."""
     material = bpy.data.materials.new("CheckerFloor")
-    tree = material.node_tree
+    tree = node_tree(material)
     bsdf = tree.nodes["Principled BSDF"]
     bsdf.inputs["Roughness"].default_value = 0.15
     checker = tree.nodes.new("ShaderNodeTexChecker")
@@ -170,7 +182,7 @@ def _checker_floor() -> bpy.types.Material:
 def _glossy_scene() -> bpy.types.Scene:
     scene = _corner("glossy", floor=_checker_floor())
     metal = bpy.data.materials.new("Metal")
-    bsdf = metal.node_tree.nodes["Principled BSDF"]
+    bsdf = node_tree(metal).nodes["Principled BSDF"]
     bsdf.inputs["Base Color"].default_value = (0.9, 0.6, 0.3, 1.0)
     bsdf.inputs["Metallic"].default_value = 1.0
     bsdf.inputs["Roughness"].default_value = 0.05
@@ -201,5 +213,5 @@ def build_scene(name: str) -> bpy.types.Scene:
     try:
         builder = SCENES[name]
     except KeyError:
-        raise KeyError(f"unknown built-in scene {name!r}; choose from {', '.join(SCENES)}") from None
+        raise BatchError(f"unknown built-in scene {name!r}; choose from {', '.join(SCENES)}") from None
     return builder()

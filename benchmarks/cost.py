@@ -28,7 +28,8 @@ GRIDS = {16: (4, 4), 64: (8, 8), 256: (16, 16), 1024: (32, 32), 4096: (64, 64), 
 
 
 def _scene(resolution: int, scene: str = "corner"):
-    from batch.run import RenderJob, prepare_scene
+    from batch.job import RenderJob
+    from batch.run import prepare_scene
 
     job = RenderJob(out="", seeds=[0], spp=1, scene=scene, resolution=(resolution, resolution))
     return prepare_scene(job)
@@ -60,6 +61,7 @@ def pass_cost(resolutions, passes: int) -> list[dict]:
 def verdict_cost(pool, ns) -> list[dict]:
     """Seconds of `compare` and of writing the report (batch.report) against passes a side, 32² tiles."""
     from batch.report import write_report
+    from batch.summary import summarize
 
     rows = []
     for n in ns:
@@ -68,7 +70,9 @@ def verdict_cost(pool, ns) -> list[dict]:
         compare_s = best_time(lambda ref=ref, test=test: wc.compare(ref, test), 3)
         result = wc.compare(ref, test)
         with tempfile.TemporaryDirectory() as folder:
-            report_s = best_time(lambda folder=folder, r=result, a=ref, b=test: write_report(folder, a, b, r), 2)
+            report_s = best_time(
+                lambda folder=folder, r=result, a=ref, b=test: write_report(folder, summarize(r, a, b), r, a, b), 2
+            )
         rows.append({"passes": n, "tiles": int(result.tile_pvalues.size), "compare_s": compare_s, "report_s": report_s})
     return rows
 

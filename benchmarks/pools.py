@@ -113,8 +113,9 @@ def load_or_render(spec: PoolSpec, cache_dir: Path, label: str = "") -> Pool:
 
 def render_pool(spec: PoolSpec, folder: Path, label: str = "") -> None:
     """Render every pass of `spec` with `batch.run.prepare_scene` and `batch.render.PassRenderer`; store them."""
+    from batch.job import RenderJob
     from batch.render import PassRenderer
-    from batch.run import RenderJob, prepare_scene
+    from batch.run import prepare_scene
 
     job = RenderJob(
         out=os.devnull,

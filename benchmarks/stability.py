@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 import welch_core as wc
+from batch.summary import notes
 
 from . import plan, trials
 from .cache import digest, memo_json, source_digest
@@ -66,7 +67,7 @@ def _outcome(comparison: wc.Comparison) -> dict:
         "untrusted": int((np.isfinite(comparison.tile_pvalues) & ~comparison.trusted).sum()),
         "valid": comparison.n_valid,
         # Numbers vary from trial to trial; the note's kind is what counts.
-        "notes": [re.sub(r"\d+", "#", note) for note in comparison.notes],
+        "notes": [re.sub(r"\d+", "#", note) for note in notes(comparison)],
     }
 
 

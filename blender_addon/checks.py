@@ -6,21 +6,11 @@ operator context; errors stop a run, warnings are reported and the run goes on.
 
 from __future__ import annotations
 
-import importlib
 import os
 
 from ._siblings import batch
 
-
-def parse_override(text: str):
-    """``batch.overrides.parse_override``; imported on use so registering never depends on the batch tool."""
-    return importlib.import_module(".overrides", batch.__name__).parse_override(text)
-
-
-def render_size(scene) -> tuple[int, int]:
-    render = scene.render
-    scale = render.resolution_percentage / 100
-    return max(int(render.resolution_x * scale), 1), max(int(render.resolution_y * scale), 1)
+render_size = batch.rna.render_size
 
 
 def scene_problems(scene, tile: int, label: str) -> list[str]:
@@ -40,7 +30,7 @@ def override_problems(texts: list[str]) -> list[str]:
     problems = []
     for text in texts:
         try:
-            parse_override(text)
+            batch.overrides.parse_override(text)
         except ValueError as ex:
             reason = " ".join(str(ex).split()).removeprefix(f"--set {text}: ")
             problems.append(f"Override '{text}': {reason}")

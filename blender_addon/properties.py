@@ -15,7 +15,6 @@ from bpy.props import (
     StringProperty,
 )
 
-from . import results
 from .runner import MAX_FIRST_SEED
 
 MODES = (
@@ -42,6 +41,8 @@ CHANNELS = (("R", "Red", "Red channel"), ("G", "Green", "Green channel"), ("B", 
 
 def _refresh_result(_self, context):
     # Display settings only re-colour the cached comparison; nothing is rendered again.
+    from . import results  # imported when a result exists, not when the add-on registers
+
     results.refresh(context)
 
 

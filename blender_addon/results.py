@@ -1,26 +1,31 @@
 """What a comparison turns into in Blender: the p-value map over the mean render as an image, and a summary.
 
 The image is built in numpy with ``welch_core`` (tone-mapped mean render, p-value colours blended over it) and
-written into ``bpy.data.images`` in one ``foreach_set``. The summary is a plain dict the panels draw from, so
-``draw()`` never computes.
+written into ``bpy.data.images`` in one ``foreach_set``. The summary is `batch.summary`'s (the words the command
+line prints and the report shows) plus what only the panel needs, so ``draw()`` never computes. numpy, scipy
+and the statistics are imported when a result is made, never when the add-on registers.
 """
 
 from __future__ import annotations
 
-import bpy
-import numpy as np
+import importlib
 
-from . import state
-from ._siblings import welch_core
+import bpy
+
+from ._siblings import batch, welch_core
+from .state import current
 
 IMAGE_NAME = "Welch P-Value Map"
 IMAGE_TAG = "welch_bias_result"  # custom property marking images this add-on may overwrite
 HISTOGRAM_BINS = 10  # one bar each in the panel
 TOP_TILES_SHOWN = 5
 DIFFERENCES_SHOWN = 8
-VERDICT_TEXT = {"biased": "Biased", "no_evidence": "No Evidence of Bias", "inconclusive": "Inconclusive"}
 CORE_MAP_MODES = {"MIN": "min", "CHANNEL": "channel", "SQRT": "sqrt", "LOG10": "log10", "Q": "q", "SIGNIFICANT": "min"}
 CHANNEL_INDEX = {"R": 0, "G": 1, "B": 2}
+
+
+def _summary_module():
+    return importlib.import_module(".summary", batch.__name__)
 
 
 def compare_files(reference_path: str, test_path: str, alpha: float):
@@ -46,15 +51,17 @@ def histogram_bars(pvalues, bins: int = HISTOGRAM_BINS) -> tuple[list[dict], flo
 
 
 def summarize(comparison, reference, test, sources: dict[str, str]) -> dict:
-    """Everything the panel shows, computed once."""
-    summary = comparison.to_json()
+    """Everything the panel shows, computed once: the command line's summary (notes and warnings included) and
+    the panel's histogram bars, verdict title and icon."""
+    summary = _summary_module().summarize(comparison, reference, test, sources["reference"], sources["test"])
     bars, expected = histogram_bars(comparison.tile_pvalues[comparison.used])
     summary.update(
-        verdict_text=VERDICT_TEXT.get(comparison.verdict, comparison.verdict),
+        verdict_title=comparison.verdict.title,
+        verdict_icon=comparison.verdict.icon,
         histogram=bars,
         histogram_expected=expected,
         top_tiles=summary["top_tiles"][:TOP_TILES_SHOWN],
-        differences=welch_core.info_differences(reference.info, test.info)[:DIFFERENCES_SHOWN],
+        differences=summary["differences"][:DIFFERENCES_SHOWN],
         excluded={k: v for k, v in summary["tile_channels"].items() if v and k != "valid"},
         sources=dict(sources),
         image="",
@@ -62,7 +69,7 @@ def summarize(comparison, reference, test, sources: dict[str, str]) -> dict:
     return summary
 
 
-def _outline(rgb: np.ndarray, row: int, col: int, tile: int) -> None:
+def _outline(rgb, row: int, col: int, tile: int) -> None:
     """Draw a white-and-black frame (visible on any colour) around one tile, in place, rows top first."""
     height, width = rgb.shape[:2]
     y0, x0 = row * tile, col * tile
@@ -75,8 +82,10 @@ def _outline(rgb: np.ndarray, row: int, col: int, tile: int) -> None:
         rgb[top : bottom + 1, left] = rgb[top : bottom + 1, right] = colour
 
 
-def result_rgba(comparison, base_stats, map_mode: str, channel: str, opacity: float, highlight=None) -> np.ndarray:
+def result_rgba(comparison, base_stats, map_mode: str, channel: str, opacity: float, highlight=None):
     """The result image as float32 RGBA, rows bottom-up (Blender's order), height x width x 4."""
+    import numpy as np
+
     height, width, tile = base_stats.height, base_stats.width, base_stats.tile
     core_mode = CORE_MAP_MODES[map_mode]
     tiles_rgb = welch_core.pvalue_rgb(comparison, mode=core_mode, channel=CHANNEL_INDEX.get(channel))
@@ -92,7 +101,7 @@ def result_rgba(comparison, base_stats, map_mode: str, channel: str, opacity: fl
     return np.ascontiguousarray(rgba[::-1])
 
 
-def write_image(rgba: np.ndarray, name: str = IMAGE_NAME) -> bpy.types.Image:
+def write_image(rgba, name: str = IMAGE_NAME) -> bpy.types.Image:
     """Put the pixels into a float image of ``bpy.data`` (reused when it is ours), colour space Non-Color."""
     height, width = rgba.shape[:2]
     image = bpy.data.images.get(name)
@@ -158,20 +167,22 @@ def frame_tile(context, x: int, y: int, size: int) -> bool:
 
 def store(comparison, reference, test, sources: dict[str, str]) -> dict:
     """Cache a new comparison for the panels and the display settings."""
-    state.comparison, state.stats, state.highlight = comparison, (reference, test), None
-    state.result = summarize(comparison, reference, test, sources)
-    return state.result
+    current.comparison, current.stats, current.highlight = comparison, (reference, test), None
+    current.result = summarize(comparison, reference, test, sources)
+    return current.result
 
 
 def refresh(context) -> bpy.types.Image | None:
     """Rebuild the result image from the cached comparison with the scene's display settings."""
-    if state.comparison is None or not state.stats:
+    if current.comparison is None or not current.stats:
         return None
     settings = context.scene.welch_bias
-    reference, test = state.stats
+    reference, test = current.stats
     # The test side is the render under suspicion: its mean is the picture under the map.
     base = test if test.mean_image is not None else reference
-    rgba = result_rgba(state.comparison, base, settings.map_mode, settings.channel, settings.opacity, state.highlight)
+    rgba = result_rgba(
+        current.comparison, base, settings.map_mode, settings.channel, settings.opacity, current.highlight
+    )
     image = write_image(rgba)
-    state.result["image"] = image.name
+    current.result["image"] = image.name
     return image

@@ -1,27 +1,48 @@
-"""What the add-on holds between operator calls, outside the user's file: the running session and the last result.
+"""What the add-on holds between operator calls, outside the user's file: one small typed object, `current`.
 
-Panels read these and never compute; operators and timers write them. Module state, because a running subprocess
+Panels read it and never compute; operators and timers write it. Module state, because a running subprocess
 and a numpy comparison cannot live in Blender properties and must not be saved into the blend file.
 """
 
 from __future__ import annotations
 
-from .runner import RUNNING
+from dataclasses import dataclass, field
 
-session = None  # runner.Session while a run is going on or until the next one starts
-run_context: dict = {}  # what the running session needs when it ends: output paths, scene names, settings key
-result: dict | None = None  # summary of the last comparison, for drawing (see results.summarize)
-comparison = None  # the last welch_core.Comparison, to re-colour the map without recomputing
-stats: tuple = ()  # (reference, test) TileStats of the last comparison
-highlight: tuple[int, int] | None = None  # (row, col) of the tile outlined in the result image
-last_error: str = ""
-resumable: dict | None = None  # run_context of a cancelled or failed run whose statistics can be continued
+from .runner import RUNNING, Session
 
 
-def running() -> bool:
-    return session is not None and session.state == RUNNING
+@dataclass(frozen=True)
+class RunFolder:
+    """A started run: its folder, statistics files, alpha, and the settings it was started with (`key`), which
+    must be unchanged for a stopped run to be resumed."""
+
+    dir: str
+    reference: str
+    test: str
+    alpha: float
+    key: tuple = ()
 
 
-def clear_result() -> None:
-    global result, comparison, stats, highlight
-    result, comparison, stats, highlight = None, None, (), None
+@dataclass
+class AddonState:
+    session: Session | None = None  # while a run is going on, and until the next one starts
+    run: RunFolder | None = None  # the run of `session`
+    resumable: RunFolder | None = None  # a cancelled or failed run whose statistics can be continued
+    result: dict | None = None  # the panel's summary of the last comparison (see results.summarize)
+    comparison: object = None  # the last welch_core.Comparison, to re-colour the map without recomputing
+    stats: tuple = field(default_factory=tuple)  # (reference, test) TileStats of the last comparison
+    highlight: tuple[int, int] | None = None  # (row, col) of the tile outlined in the result image
+    last_error: str = ""
+
+    def running(self) -> bool:
+        return self.session is not None and self.session.state == RUNNING
+
+    def clear_result(self) -> None:
+        self.result, self.comparison, self.stats, self.highlight = None, None, (), None
+
+    def reset(self) -> None:
+        """Forget everything (a new file was loaded, the add-on is being disabled)."""
+        self.__init__()
+
+
+current = AddonState()

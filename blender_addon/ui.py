@@ -1,15 +1,17 @@
 """Panels in Properties > Render (Cycles) and the Image Editor sidebar, and a progress bar in the status bar.
 
 ``draw()`` only reads the scene settings and the cached state (``state.py``); every number shown was computed
-when the run ended.
+when the run ended. Layout calls that Blender 3.4 lacks (``panel``, ``progress``) fall back to boxes and labels.
 """
 
 import bpy
 
-from . import runner, state
-from .operators import settings_key
+from . import runner
+from ._siblings import batch
+from .session import settings_key
+from .state import current
 
-VERDICT_ICONS = {"biased": "ERROR", "no_evidence": "CHECKMARK", "inconclusive": "QUESTION"}
+fmt = batch.fmt
 
 # Cycles settings that bias the image by design (clamping, Filter Glossy, caustics off, Fast GI), as overrides.
 OVERRIDE_PRESETS = (
@@ -22,12 +24,23 @@ OVERRIDE_PRESETS = (
 )
 
 
-def _p(value) -> str:
-    return "n/a" if value is None else f"{value:.3g}"
+def subpanel(layout, idname: str, title: str, default_closed: bool = False):
+    """A collapsible sub-panel (Blender 4.1+), else a box with a heading; returns its body or None if closed."""
+    if hasattr(layout, "panel"):
+        header, body = layout.panel(idname, default_closed=default_closed)
+        header.label(text=title)
+        return body
+    box = layout.box()
+    box.label(text=title)
+    return box
 
 
-def _percent(value) -> str:
-    return "n/a" if value is None or value != value else f"{value * 100:+.1f} %"
+def progress_bar(layout, factor: float, text: str) -> None:
+    """A progress bar (Blender 4.0+), else the text with the percentage."""
+    if hasattr(layout, "progress"):
+        layout.progress(factor=factor, type="BAR", text=text)
+    else:
+        layout.label(text=f"{text} ({factor:.0%})", icon="TIME")
 
 
 def draw_overrides(layout, settings) -> None:
@@ -52,8 +65,7 @@ def draw_setup(layout, settings) -> None:
     if settings.mode == "TWO_SCENES":
         layout.prop(settings, "reference_scene")
         layout.prop(settings, "test_scene")
-    header, body = layout.panel("welch_bias_overrides", default_closed=False)
-    header.label(text=f"Test Side Overrides ({len(settings.overrides)})")
+    body = subpanel(layout, "welch_bias_overrides", f"Test Side Overrides ({len(settings.overrides)})")
     if body is not None:
         draw_overrides(body, settings)
     col = layout.column()
@@ -67,35 +79,35 @@ def draw_setup(layout, settings) -> None:
 
 
 def draw_run(layout, context, settings) -> None:
-    session = state.session
-    if state.running():
+    session = current.session
+    if current.running():
         row = layout.row(align=True)
-        row.progress(factor=session.fraction, type="BAR", text=session.status_text())
+        progress_bar(row, session.fraction, session.status_text())
         row.operator("welch_bias.cancel", text="", icon="CANCEL")
         return
     row = layout.row(align=True)
     row.scale_y = 1.4
     text = "Compare Files" if settings.mode == "STATS_FILES" else "Run"
     row.operator("welch_bias.run", text=text, icon="PLAY")
-    resumable = state.resumable
+    resumable = current.resumable
     if resumable is not None and settings.mode != "STATS_FILES":
-        if resumable["key"] == settings_key(settings, context.scene):
+        if resumable.key == settings_key(settings, context.scene):
             row.operator("welch_bias.run", text="Resume", icon="FILE_REFRESH").resume = True
     if session is not None and session.state == runner.CANCELLED:
         layout.label(text=session.status_text(), icon="INFO")
-    if state.last_error:
+    if current.last_error:
         box = layout.box()
         box.alert = True
-        box.label(text=state.last_error, icon="ERROR")
+        box.label(text=current.last_error, icon="ERROR")
 
 
 def draw_verdict(layout, result) -> None:
     box = layout.box()
     row = box.row()
     row.alert = result["verdict"] == "biased"
-    row.label(text=result["verdict_text"], icon=VERDICT_ICONS.get(result["verdict"], "NONE"))
+    row.label(text=result["verdict_title"], icon=result["verdict_icon"])
     test = "paired t-test" if result["test"] == "paired" else "Welch's t-test"
-    box.label(text=f"Alpha {result['alpha']:g}, global p {_p(result['p_value'])}, {test}")
+    box.label(text=f"Alpha {result['alpha']:g}, global p {fmt.p_value(result['p_value'])}, {test}")
     tiles = result["tiles"]
     box.label(text=f"Tiles: {tiles['valid']} of {tiles['total']} valid, {tiles['used']} used")
     box.label(text=f"Significant after correction: {tiles['significant']}")
@@ -104,6 +116,8 @@ def draw_verdict(layout, result) -> None:
         box.label(text=f"Excluded tile-channels, {reason}: {count}")
     for note in result["notes"]:
         box.label(text=note, icon="INFO")
+    for warning in result["warnings"]:
+        box.label(text=warning, icon="ERROR")
 
 
 def draw_display(layout, settings) -> None:
@@ -118,7 +132,7 @@ def draw_display(layout, settings) -> None:
 def draw_histogram(layout, result) -> None:
     col = layout.column(align=True)
     for bar in result["histogram"]:
-        col.progress(factor=bar["fill"], type="BAR", text=f"p {bar['label']}: {bar['count']}")
+        progress_bar(col, bar["fill"], f"p {bar['label']}: {bar['count']}")
     layout.label(text=f"Flat at {result['histogram_expected']:.1f} tiles per bin if unbiased")
 
 
@@ -128,14 +142,15 @@ def draw_top_tiles(layout, result) -> None:
         return
     for tile in result["top_tiles"]:
         row = layout.row(align=True)
-        text = f"({tile['x']}, {tile['y']}) {tile['channel']} p {_p(tile['pvalue'])}"
+        text = f"({tile['x']}, {tile['y']}) {tile['channel']} p {fmt.p_value(tile['pvalue'])}"
         op = row.operator("welch_bias.frame_tile", text=text, icon="ZOOM_SELECTED")
         op.row, op.col = tile["row"], tile["col"]
-        row.label(text=f"{_percent(tile['rel_diff'])} [{_percent(tile['ci_low'])}, {_percent(tile['ci_high'])}]")
+        interval = f"[{fmt.percent(tile['ci_low'], 1)}, {fmt.percent(tile['ci_high'], 1)}]"
+        row.label(text=f"{fmt.percent(tile['rel_diff'], 1)} {interval}")
 
 
 def draw_result(layout, settings) -> None:
-    result = state.result
+    result = current.result
     if result is None:
         layout.label(text="No result yet")
         return
@@ -145,13 +160,11 @@ def draw_result(layout, settings) -> None:
         ("welch_bias_histogram", "P-Value Histogram", draw_histogram),
         ("welch_bias_top_tiles", "Most Significant Tiles", draw_top_tiles),
     ):
-        header, body = layout.panel(idname, default_closed=False)
-        header.label(text=title)
+        body = subpanel(layout, idname, title)
         if body is not None:
             draw(body, result)
     if result["differences"]:
-        header, body = layout.panel("welch_bias_differences", default_closed=True)
-        header.label(text="Recorded Differences")
+        body = subpanel(layout, "welch_bias_differences", "Recorded Differences", default_closed=True)
         if body is not None:
             for line in result["differences"]:
                 body.label(text=line)
@@ -199,9 +212,9 @@ class WELCH_BIAS_PT_image_editor(WelchBiasPanel, bpy.types.Panel):
 
 def draw_status(self, _context):
     """Progress in the status bar while a run goes on, so it is visible from any editor."""
-    if state.running():
+    if current.running():
         row = self.layout.row(align=True)
-        row.progress(factor=state.session.fraction, type="BAR", text=state.session.status_text())
+        progress_bar(row, current.session.fraction, current.session.status_text())
         row.operator("welch_bias.cancel", text="", icon="CANCEL")
 
 

@@ -14,7 +14,11 @@ bpy = pytest.importorskip("bpy")
 
 import blender_addon  # noqa: E402
 import welch_core  # noqa: E402
-from blender_addon import checks, operators, results, runner, state, ui  # noqa: E402
+from batch.job import RenderJob  # noqa: E402
+from batch.launch import Command  # noqa: E402
+from blender_addon import checks, results, runner, session, ui  # noqa: E402
+from blender_addon.state import RunFolder  # noqa: E402
+from blender_addon.state import current as state  # noqa: E402
 
 SIZE = 64
 TILE = 16
@@ -45,7 +49,7 @@ def scene():
     new.render.engine = "CYCLES"
     window.scene = new
     state.clear_result()
-    state.session, state.last_error, state.resumable = None, "", None
+    state.reset()
     yield new
     window.scene = previous
     bpy.data.scenes.remove(new)
@@ -173,7 +177,7 @@ def test_register_and_unregister_twice():
 def test_settings_defaults_and_limits(scene):
     settings = scene.welch_bias
     assert (settings.mode, settings.passes, settings.tile) == ("CURRENT_WITH_OVERRIDES", 32, 32)
-    assert operators.alpha_of(settings) == 0.01  # a single-precision property, rounded before use
+    assert session.alpha_of(settings) == 0.01  # a single-precision property, rounded before use
     settings.passes = 1
     settings.alpha = 0.9
     settings.opacity = 2.0
@@ -254,7 +258,7 @@ def test_compare_files_builds_the_result_image_and_summary(scene, tmp_path):
     settings.test_file = write_stats(tmp_path / "test.npz", range(16, 32), bias=0.3, seed=2)
     assert bpy.ops.welch_bias.run() == {"FINISHED"}
     result = state.result
-    assert result["verdict"] == "biased" and result["verdict_text"] == "Biased"
+    assert result["verdict"] == "biased" and result["verdict_title"] == "Biased" and result["verdict_icon"] == "ERROR"
     assert result["test"] == "welch" and result["tiles"]["total"] == 16
     assert result["top_tiles"][0]["row"] < 2 and result["top_tiles"][0]["col"] < 2  # the biased quarter
     assert len(result["histogram"]) == results.HISTOGRAM_BINS
@@ -375,10 +379,10 @@ def test_panel_with_overrides_and_an_error(scene):
 
 
 def test_panel_and_status_bar_while_running(scene, tmp_path):
-    spec = runner.RunSpec("Reference", "x.blend", str(tmp_path / "r.npz"), "0:4")
-    command = runner.Command([sys.executable, "-c", "import time; time.sleep(60)"], str(tmp_path), {})
-    state.session = runner.Session([spec, spec], [command, command])
-    state.run_context = {"dir": str(tmp_path), "key": ()}
+    side = runner.Side("Reference", RenderJob(out=str(tmp_path / "r.npz"), seeds=range(4), blend="x.blend"))
+    command = Command([sys.executable, "-c", "import time; time.sleep(60)"], {}, str(tmp_path))
+    state.session = runner.Session([side, side], [command, command])
+    state.run = RunFolder(dir=str(tmp_path), reference="", test="", alpha=0.01, key=())
     try:
         state.session.poll()
         layout = draw_panel()
@@ -395,23 +399,23 @@ def test_panel_and_status_bar_while_running(scene, tmp_path):
     finally:
         if state.running():
             state.session.cancel()
-    assert state.session.state == runner.CANCELLED and state.resumable == state.run_context
+    assert state.session.state == runner.CANCELLED and state.resumable == state.run
     layout = draw_panel()
     assert "Cancelled" in layout.texts()
     assert [op["text"] for op in layout.operators()][-1] == "Run"  # other settings: nothing to resume
-    state.resumable["key"] = operators.settings_key(scene.welch_bias, scene)
+    state.resumable = RunFolder(**{**vars(state.run), "key": session.settings_key(scene.welch_bias, scene)})
     resume = draw_panel().operators()[-1]
     assert resume["text"] == "Resume" and resume["props"].resume is True
 
 
 def test_disabling_the_addon_stops_a_running_render(scene, tmp_path):
-    spec = runner.RunSpec("Reference", "x.blend", str(tmp_path / "r.npz"), "0:4")
-    command = runner.Command([sys.executable, "-c", "import time; time.sleep(60)"], str(tmp_path), {})
-    session = state.session = runner.Session([spec], [command])
-    session.poll()
+    side = runner.Side("Reference", RenderJob(out=str(tmp_path / "r.npz"), seeds=range(4), blend="x.blend"))
+    command = Command([sys.executable, "-c", "import time; time.sleep(60)"], {}, str(tmp_path))
+    running = state.session = runner.Session([side], [command])
+    running.poll()
     blender_addon.unregister()
     try:
-        assert session.state == runner.CANCELLED and session.process.popen.poll() is not None
+        assert running.state == runner.CANCELLED and running.process.popen.poll() is not None
         assert state.session is None
     finally:
         blender_addon.register()
@@ -457,5 +461,5 @@ def test_render_panel_is_for_cycles_only(scene):
 
 
 def test_user_dir_falls_back_to_a_temporary_folder():
-    path = operators.user_dir()
+    path = session.user_dir()
     assert path.is_dir() and Path(tempfile.gettempdir()) in path.parents

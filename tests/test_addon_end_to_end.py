@@ -15,7 +15,8 @@ pytest.importorskip("batch.render")
 pytest.importorskip("batch.overrides")
 
 import blender_addon  # noqa: E402
-from blender_addon import operators, runner, state  # noqa: E402
+from blender_addon import runner, session  # noqa: E402
+from blender_addon.state import current as state  # noqa: E402
 
 SIZE = 64  # the corner scene's default resolution
 TILE = 16
@@ -72,7 +73,7 @@ def test_run_renders_both_sides_and_shows_a_biased_map(corner):
     rgb = pixels.reshape(SIZE, SIZE, 4)[..., :3]
     assert np.isfinite(rgb).all() and rgb.std() > 0.01 and 0.0 <= rgb.min() and rgb.max() <= 1.0
 
-    run_dir = Path(state.run_context["dir"])
+    run_dir = Path(state.run.dir)
     assert (run_dir / "reference.npz").is_file() and (run_dir / "test.npz").is_file()
     assert not (run_dir / "scene.blend").exists()  # the temporary copy is gone
     assert bpy.data.filepath == str(user_file) and _digest(user_file) == before
@@ -100,7 +101,7 @@ def test_an_override_that_does_not_resolve_fails_in_one_line(corner):
     with pytest.raises(RuntimeError, match=r"Test run failed \(exit code 2\): .*no_such_setting"):
         bpy.ops.welch_bias.run()
     assert "\n" not in state.last_error
-    assert state.resumable is not None and Path(state.resumable["reference"]).is_file()
+    assert state.resumable is not None and Path(state.resumable.reference).is_file()
     assert state.result is None
 
 
@@ -108,17 +109,17 @@ def test_an_override_that_does_not_resolve_fails_in_one_line(corner):
 def test_cancel_then_resume_completes_the_run(corner):
     scene, _ = corner
     settings = _settings(scene, [f"{scenes.WALL_COLOR_PATH}=0.3,0.3,0.3,1"])
-    session = operators.start_session(bpy.context, settings, resume=False)
+    started = session.start(bpy.context, settings, resume=False)
     deadline = time.monotonic() + 60
-    while session.poll() == runner.RUNNING and session.progress.done < 1 and time.monotonic() < deadline:
+    while started.poll() == runner.RUNNING and started.progress.done < 1 and time.monotonic() < deadline:
         time.sleep(0.01)
-    assert session.state == runner.RUNNING
+    assert started.state == runner.RUNNING
     assert bpy.ops.welch_bias.cancel() == {"FINISHED"}
-    run_dir = state.run_context["dir"]
-    assert session.state == runner.CANCELLED and state.resumable["dir"] == run_dir
-    assert not (Path(run_dir) / "scene.blend").exists()
+    run_dir = state.run.dir
+    assert started.state == runner.CANCELLED and state.resumable.dir == run_dir
+    assert (Path(run_dir) / "scene.blend").exists()  # kept: the resumed run renders the same scene
 
     assert bpy.ops.welch_bias.run(resume=True) == {"FINISHED"}
-    assert state.run_context["dir"] == run_dir  # the same statistics files, continued
+    assert state.run.dir == run_dir  # the same statistics files, continued
     assert state.result["n_ref"] == state.result["n_test"] == PASSES
     assert state.result["verdict"] == "biased"

@@ -1,4 +1,4 @@
-"""blender_addon.runner without Blender: command lines, progress parsing, sessions of real subprocesses, cancel."""
+"""blender_addon.runner without Blender: seeds of the two sides, sessions of real subprocesses, cancel."""
 
 import os
 import sys
@@ -8,90 +8,23 @@ from pathlib import Path
 
 import pytest
 
+from batch.job import RenderJob
+from batch.launch import Command
 from blender_addon import runner
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
 def test_seed_ranges_are_disjoint_unless_paired():
-    assert runner.seed_ranges(0, 8, paired=False) == ("0:8", "8:16")
-    assert runner.seed_ranges(100, 3, paired=False) == ("100:103", "103:106")
-    assert runner.seed_ranges(5, 4, paired=True) == ("5:9", "5:9")
+    assert runner.seed_ranges(0, 8, paired=False) == (range(0, 8), range(8, 16))
+    assert runner.seed_ranges(100, 3, paired=False) == (range(100, 103), range(103, 106))
+    assert runner.seed_ranges(5, 4, paired=True) == (range(5, 9), range(5, 9))
 
 
 @pytest.mark.parametrize("first, passes", [(-1, 4), (0, 0), (2**31 - 4, 4)])
 def test_seed_ranges_reject_bad_input(first, passes):
     with pytest.raises(ValueError, match="seeds"):
         runner.seed_ranges(first, passes, paired=False)
-
-
-def _spec(**changes):
-    fields = {
-        "label": "Test",
-        "blend": "/tmp/run/scene.blend",
-        "out": "/tmp/run/test.npz",
-        "seeds": "8:16",
-        "spp": 2,
-        "tile": 16,
-        "overrides": ("cycles.blur_glossy=0", 'lights["Light"].energy=10'),
-        "blend_scene": "Scene",
-    }
-    return runner.RunSpec(**(fields | changes))
-
-
-def test_command_with_the_bpy_module_runs_python_m_batch_from_the_extension_root():
-    command = runner.command_for(_spec(), ROOT, "", python="/py", python_paths=["/wheels"], base_env={})
-    assert command.argv == [
-        "/py", "-m", "batch", "render", "/tmp/run/scene.blend",
-        "--json-progress", "--seeds", "8:16", "--spp", "2", "--tile", "16", "--device", "CPU",
-        "--blend-scene", "Scene",
-        "--set", "cycles.blur_glossy=0", "--set", 'lights["Light"].energy=10',
-        "--out", "/tmp/run/test.npz",
-    ]  # fmt: skip
-    assert command.cwd == str(ROOT)
-    assert command.env["PYTHONPATH"].split(os.pathsep) == [str(ROOT), "/wheels"]
-    assert command.env["PYTHONUNBUFFERED"] == "1"
-
-
-def test_command_with_a_blender_binary_passes_the_tool_arguments_after_dashdash():
-    command = runner.command_for(_spec(resume=True, overrides=()), ROOT, "/opt/blender/blender", base_env={})
-    entry = str(ROOT / "batch" / "blender_entry.py")
-    assert command.argv[:8] == ["/opt/blender/blender", "-b", "/tmp/run/scene.blend", "--python-exit-code", "1",
-                                "--python", entry, "--"]  # fmt: skip
-    assert command.argv[8:] == [
-        "render", "--json-progress", "--seeds", "8:16", "--spp", "2", "--tile", "16", "--device", "CPU",
-        "--blend-scene", "Scene", "--resume", "--out", "/tmp/run/test.npz",
-    ]  # fmt: skip
-    assert "PYTHONPATH" not in command.env  # Blender ignores it unless started with --python-use-system-env
-
-
-def test_command_lines_parse_with_the_batch_tool():
-    cli = pytest.importorskip("batch.cli")
-    module_argv = runner.command_for(_spec(), ROOT, "").argv
-    args = cli.build_parser().parse_args(module_argv[3:])
-    assert (args.command, args.blend, args.seeds, args.spp, args.tile) == ("render", "/tmp/run/scene.blend",
-                                                                          list(range(8, 16)), 2, 16)  # fmt: skip
-    assert args.overrides == list(_spec().overrides) and args.json_progress and args.blend_scene == "Scene"
-    blender_argv = runner.command_for(_spec(resume=True), ROOT, "/blender").argv
-    args = cli.build_parser().parse_args(cli.argv_after_dashdash(blender_argv))
-    assert args.blend is None and args.resume and args.out == "/tmp/run/test.npz"
-
-
-def test_progress_lines_are_picked_out_of_other_output():
-    lines = [
-        "Fra:1 Mem:12.00M | Time:00:00.01 | Sample 0/1",
-        '{"event": "start", "total": 8, "todo": 8, "out": "x.npz"}',
-        "{not json",
-        '{"something": "else"}',
-        '["event", "pass"]',
-        '  {"event": "pass", "done": 1, "total": 8, "seed": 0, "seconds": 0.2, "eta": 1.4}  \n',
-        '{"event": "unknown"}',
-        "",
-        '{"event": "done", "out": "x.npz", "passes": 8}',
-    ]
-    events = [e for e in map(runner.parse_progress_line, lines) if e is not None]
-    assert [e["event"] for e in events] == ["start", "pass", "done"]
-    assert events[1]["eta"] == 1.4
 
 
 def test_overall_fraction_counts_both_sides():
@@ -101,15 +34,6 @@ def test_overall_fraction_counts_both_sides():
     assert runner.overall_fraction(1, 2, 8, 8) == 1.0
     assert runner.overall_fraction(2, 2, 0, 0) == 1.0
     assert runner.overall_fraction(0, 1, 9, 8) == 1.0
-
-
-def test_one_line_and_durations():
-    assert runner.one_line("a\n  b\tc") == "a b c"
-    assert len(runner.one_line("x" * 500)) == runner.ERROR_LENGTH
-    assert runner.format_seconds(None) == "?"
-    assert runner.format_seconds(42.4) == "42 s"
-    assert runner.format_seconds(125) == "2 min 05 s"
-    assert runner.format_seconds(7300) == "2 h 01 min"
 
 
 # A stand-in for `python -m batch render`: the same output protocol, no rendering.
@@ -144,13 +68,13 @@ FAKE_BATCH = textwrap.dedent(
 def _session(tmp_path, modes, passes=4):
     temp_copy = tmp_path / "scene.blend"
     temp_copy.write_text("copy")
-    specs, commands = [], []
+    sides, commands = [], []
     for label, mode in zip(("Reference", "Test"), modes, strict=False):
         out = str(tmp_path / f"{label.lower()}.npz")
-        specs.append(runner.RunSpec(label, str(temp_copy), out, "0:4"))
+        sides.append(runner.Side(label, RenderJob(out=out, seeds=range(4), blend=str(temp_copy))))
         argv = [sys.executable, "-c", FAKE_BATCH, out, str(passes), mode]
-        commands.append(runner.Command(argv, str(tmp_path), dict(os.environ)))
-    return runner.Session(specs, commands, temporary_files=[str(temp_copy)]), temp_copy
+        commands.append(Command(argv, dict(os.environ), str(tmp_path)))
+    return runner.Session(sides, commands, temporary_files=[str(temp_copy)]), temp_copy
 
 
 def test_session_runs_both_sides_and_tracks_progress(tmp_path):
@@ -173,7 +97,7 @@ def test_session_reports_the_error_event_of_a_failed_side(tmp_path):
     session, temp_copy = _session(tmp_path, ["ok", "error"])
     assert session.wait(timeout=30) == runner.FAILED
     assert session.error == "Test run failed (exit code 2): override cycles.nope does not resolve"
-    assert not temp_copy.exists()
+    assert temp_copy.exists()  # kept: the run may be resumed with the scene it started from
     assert session.status_text().startswith("Failed: Test run failed")
 
 
@@ -185,11 +109,18 @@ def test_session_reports_stderr_of_a_crash(tmp_path):
 
 
 def test_session_fails_when_the_program_is_missing(tmp_path):
-    spec = runner.RunSpec("Reference", "x.blend", str(tmp_path / "r.npz"), "0:2")
-    command = runner.Command([str(tmp_path / "no-such-program")], str(tmp_path), {})
-    session = runner.Session([spec], [command])
+    side = runner.Side("Reference", RenderJob(out=str(tmp_path / "r.npz"), seeds=range(2), blend="x.blend"))
+    command = Command([str(tmp_path / "no-such-program")], {}, str(tmp_path))
+    session = runner.Session([side], [command])
     assert session.poll() == runner.FAILED
-    assert session.error.startswith("Reference run could not start:")
+    assert session.error.startswith("Reference run could not start: can't start ")
+    assert session.error.endswith("no-such-program: No such file or directory")
+
+
+def test_session_builds_its_commands_from_the_jobs(tmp_path):
+    job = RenderJob(out=str(tmp_path / "r.npz"), seeds=range(2), blend="x.blend", blender="/opt/blender")
+    session = runner.Session([runner.Side("Reference", job)])
+    assert session.commands[0].argv[:3] == ["/opt/blender", "-b", "x.blend"]
 
 
 def test_cancel_terminates_a_running_side_and_keeps_its_checkpoint(tmp_path):
@@ -204,7 +135,7 @@ def test_cancel_terminates_a_running_side_and_keeps_its_checkpoint(tmp_path):
     assert time.monotonic() - started < 5
     assert process.popen.poll() is not None
     assert session.state == runner.CANCELLED and session.poll() == runner.CANCELLED
-    assert not temp_copy.exists()
+    assert temp_copy.exists()
     assert (tmp_path / "reference.npz").is_file()  # the partial statistics stay for --resume
     assert 0 < session.fraction < 0.5
 

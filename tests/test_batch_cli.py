@@ -146,10 +146,20 @@ def test_compare_unbiased_biased_and_reports(tmp_path, capsys):
 
 def test_paired_is_chosen_for_identical_seeds(tmp_path):
     ref = ingest(tmp_path, "ref", range(16))
+    brighter = ingest(tmp_path, "brighter", range(16), scale=1.01)
     out = tmp_path / "paired"
-    # identical seeds and identical passes: every difference is zero, nothing is testable
-    assert cli.main(["compare", ref, ref, "--out", str(out)]) == cli.EXIT_INCONCLUSIVE
+    assert cli.main(["compare", ref, brighter, "--out", str(out)]) == cli.EXIT_BIASED
     assert json.loads((out / "report.json").read_text())["test"] == "paired"
+
+
+def test_a_run_compared_with_itself_says_so(tmp_path, capsys):
+    ref = ingest(tmp_path, "ref", range(16))
+    capsys.readouterr()
+    assert cli.main(["compare", ref, ref, "--out", str(tmp_path / "same")]) == cli.EXIT_USAGE
+    assert capsys.readouterr().err == (
+        "error: the two runs hold the same passes (a run compared with itself): compare it with a run rendered with "
+        "other seeds or settings, or run selftest on it\n"
+    )
 
 
 def test_overlapping_seeds_are_refused(tmp_path, capsys):
@@ -246,7 +256,10 @@ def test_merge_equals_one_run(tmp_path, capsys):
     assert merged.seeds == list(range(12))
     np.testing.assert_allclose(merged.mean, whole.mean, rtol=1e-12)
     np.testing.assert_allclose(merged.variance, whole.variance, rtol=1e-10)
-    assert cli.main(["merge", first, first, "--out", str(out)]) == cli.EXIT_USAGE
+    capsys.readouterr()
+    assert cli.main(["merge", first, second, "--out", str(out)]) == cli.EXIT_USAGE
+    assert capsys.readouterr().err == f"error: {out} already exists: choose another --out or remove it first\n"
+    assert cli.main(["merge", first, first, "--out", str(tmp_path / "twice.npz")]) == cli.EXIT_USAGE
     assert f"error: {first}: seed 0 is already in this run" in capsys.readouterr().err
 
 

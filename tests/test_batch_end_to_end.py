@@ -172,7 +172,9 @@ def test_resume_refuses_other_settings(reference, tmp_path):
         copy,
         check=2,
     )
-    assert "can't resume" in done.stderr and "other settings" in done.stderr
+    assert (
+        done.stderr == f"error: {copy}: can't resume runs that differ in the setting cycles.max_bounces: 1024 and 3\n"
+    )
 
 
 @pytest.mark.parametrize(

@@ -1,12 +1,22 @@
 """Tile sums and the mergeable per-tile statistics (welch_core.tiles)."""
 
+import dataclasses
 import re
 
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
-from welch_core import GridMismatchError, Reason, RunInfo, TileStats, WelchInputError, compare, tile_sums
+from welch_core import (
+    GridMismatchError,
+    Reason,
+    RunInfo,
+    RunMismatchError,
+    TileStats,
+    WelchInputError,
+    compare,
+    tile_sums,
+)
 
 
 def naive_tile_sums(image, tile, channels=3):
@@ -182,15 +192,15 @@ def test_streaming_equals_batch():
     stacked = np.stack([naive_tile_sums(p, 16) for p in passes])
     assert run.n == 17 and run.seeds == list(range(100, 117))
     assert_allclose(run.sums, stacked, rtol=1e-6)
-    # Welford's mean and variance against numpy on the same stacked tile sums.
+    # The derived mean and variance against numpy on the same stacked tile sums.
     assert_allclose(run.mean, run.sums.mean(axis=0), rtol=1e-12)
     assert_allclose(run.variance, run.sums.var(axis=0, ddof=1), rtol=1e-12)
     assert_allclose(run.m2, ((run.sums - run.sums.mean(axis=0)) ** 2).sum(axis=0), rtol=1e-12)
     assert_allclose(run.mean_image, np.mean([p[..., :3] for p in passes], axis=0), rtol=1e-6)
 
 
-def test_welford_is_stable_with_a_large_offset():
-    """Sum-of-squares cancellation (sum x^2 - (sum x)^2 / n) fails here; M2 does not."""
+def test_moments_are_stable_with_a_large_offset():
+    """Sum-of-squares cancellation (sum x^2 - (sum x)^2 / n) fails here; the shifted two-pass M2 does not."""
     rng = np.random.default_rng(7)
     sums = 1e9 + rng.normal(0.0, 1.0, size=(50, 1, 1, 3))
     run = TileStats(8, 8, 8, keep_mean_image=False)
@@ -274,12 +284,62 @@ def test_merge_refusals():
     msg = "statistics have different grids (width, height, tile, channels): (16, 16, 8, 3) against (16, 16, 4, 3)"
     with pytest.raises(GridMismatchError, match=re.escape(msg)):
         a.merge(other_grid)
-    with pytest.raises(WelchInputError, match=re.escape("can't merge runs of different spp: 1 and 4")):
+    with pytest.raises(RunMismatchError, match=re.escape("can't merge runs that differ in spp: 1 and 4")):
         a.merge(TileStats(16, 16, 8, info=RunInfo(spp=4)))
-    x = TileStats(16, 16, 8, info=RunInfo(settings_hash="aaa"))
-    y = TileStats(16, 16, 8, info=RunInfo(settings_hash="bbb"))
-    with pytest.raises(WelchInputError, match=re.escape("can't merge runs whose scene settings differ")):
-        x.merge(y)
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"scene": "glossy", "scene_id": "builtin:glossy:1"}, "differ in scene: 'corner' and 'glossy'"),
+        ({"scene_id": "sha256:ff"}, "differ in scene_id: 'builtin:corner:1' and 'sha256:ff'"),
+        ({"renderer": "unknown"}, "differ in renderer: 'Cycles' and 'unknown'"),
+        ({"renderer_version": "3.4.1"}, "differ in renderer_version: '5.0.1' and '3.4.1'"),
+        ({"build_hash": "Unknown"}, "differ in build_hash: 'a3db93c5b259' and 'Unknown'"),
+        ({"device": "GPU"}, "differ in device: 'CPU' and 'GPU'"),
+        ({"sampling_pattern": "BLUE_NOISE"}, "differ in sampling_pattern: 'TABULATED_SOBOL' and 'BLUE_NOISE'"),
+        (
+            {"settings": {"cycles.max_bounces": 3}, "settings_hash": "other"},
+            "differ in the setting cycles.max_bounces: 1024 and 3",
+        ),
+        ({"overrides": ("cycles.blur_glossy=1",)}, "differ in overrides: [] and ['cycles.blur_glossy=1']"),
+    ],
+)
+def test_merge_refuses_runs_of_another_configuration(changes, message):
+    """A run is one configuration: anything that changes the expected image (or must match) is part of it."""
+    base = RunInfo(
+        spp=1,
+        renderer="Cycles",
+        renderer_version="5.0.1",
+        build_hash="a3db93c5b259",
+        device="CPU",
+        sampling_pattern="TABULATED_SOBOL",
+        scene="corner",
+        scene_id="builtin:corner:1",
+        settings={"cycles.max_bounces": 1024},
+        settings_hash="abc",
+    )
+    a = TileStats(16, 16, 8, info=base)
+    b = TileStats(16, 16, 8, info=dataclasses.replace(base, **changes))
+    with pytest.raises(RunMismatchError, match=re.escape(f"can't merge runs that {message}")):
+        a.merge(b)
+    with pytest.raises(RunMismatchError, match=re.escape(f"can't resume runs that {message}")):
+        a.same_run(b, "resume")
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "message"),
+    [
+        ("renderer", 3, "`renderer` must be a string, got int 3"),
+        ("settings", [1], "`settings` must be a dict, got list"),
+        ("overrides", "x=1", "`overrides` must be a list of strings, got 'x=1'"),
+        ("overrides", [1], "`overrides` must be a list of strings, got [1]"),
+        ("spp", 2**24 + 1, "`spp` must be an integer <= 16777216, got 16777217"),
+    ],
+)
+def test_runinfo_checks_types(field, value, message):
+    with pytest.raises(WelchInputError, match=re.escape(message)):
+        RunInfo(**{field: value})
 
 
 # -- derived runs ------------------------------------------------------------------------------------------
@@ -394,3 +454,34 @@ def test_nonfinite_pass_allowed_gives_non_finite_reason():
     assert result.reason_counts["non_finite"] == 2
     assert np.isfinite(result.tile_pvalues).all()  # the other channels of those tiles still count
     assert result.verdict == "no_evidence"
+
+
+def test_add_sums_equals_add_pass():
+    """Passes that arrive as tile sums (from a worker) give the same run as the images themselves."""
+    rng = np.random.default_rng(18)
+    passes = make_passes(rng, 6, 24, 40)
+    direct = accumulate(passes, range(6), 24, 40, 8)
+    sent = TileStats(24, 40, 8)
+    for chunk in (range(0, 4), range(4, 6)):
+        sums = np.stack([tile_sums(passes[i], 8) for i in chunk])
+        pixel_sum = np.sum([passes[i][..., :3] for i in chunk], axis=0, dtype=np.float32)
+        sent.add_sums(sums, list(chunk), pixel_sum)
+    assert sent.seeds == direct.seeds
+    assert_array_equal(sent.sums, direct.sums)
+    assert_allclose(sent.mean_image, direct.mean_image, rtol=1e-6)
+    with pytest.raises(WelchInputError, match=re.escape("seed 5 is already in this run")):
+        sent.add_sums(sums, [5, 6], pixel_sum)
+    with pytest.raises(WelchInputError, match=re.escape("`pixel_sum` is needed: this run keeps the mean image")):
+        sent.add_sums(sums, [7, 8])
+    assert sent.n == 6
+
+
+def test_sums_are_read_only_and_moments_follow_new_passes():
+    rng = np.random.default_rng(19)
+    run = accumulate(make_passes(rng, 3, 16, 16), range(3), 16, 16, 8)
+    with pytest.raises(ValueError, match="read-only"):
+        run.sums[0, 0, 0, 0] = 1.0
+    before = run.mean.copy()
+    run.add_pass(make_passes(rng, 1, 16, 16)[0] * 10, 3)
+    assert not np.array_equal(run.mean, before)
+    assert_allclose(run.mean, run.sums.mean(axis=0), rtol=1e-12)

@@ -66,8 +66,16 @@ def test_each_rule_fires_on_its_setting(factory, override, path, severity):
 def test_every_view_layer_is_checked(factory):
     scene = build_scene("corner")
     scene.view_layers.new('Layer "2"').cycles.use_denoising = True
-    (finding,) = lint_scene(scene)
-    assert finding.path == 'view_layers["Layer \\"2\\""].cycles.use_denoising'
+    scene.cycles.use_denoising = True
+    paths = [finding.path for finding in lint_scene(scene)]
+    assert paths == ["cycles.use_denoising", 'view_layers["Layer \\"2\\""].cycles.use_denoising']
+
+
+def test_a_view_layer_denoising_flag_does_nothing_while_the_scenes_is_off(factory):
+    """New view layers have denoising on, but it only denoises with the scene's on too: a correct scene is clean."""
+    scene = build_scene("corner")
+    assert scene.view_layers.new("Layer 2").cycles.use_denoising
+    assert lint_scene(scene) == []
 
 
 def test_rules_are_well_formed_and_missing_properties_are_skipped(factory):

@@ -11,7 +11,9 @@ import pytest
 bpy = pytest.importorskip("bpy")
 
 from batch import render  # noqa: E402
+from batch.errors import BatchError  # noqa: E402
 from batch.overrides import apply_overrides, parse_override  # noqa: E402
+from batch.rna import render_size  # noqa: E402
 from batch.scenes import SCENES, WALL_COLOR_PATH, build_scene  # noqa: E402
 
 SIZE = 64
@@ -45,7 +47,7 @@ def test_every_builtin_scene_renders(factory, name):
 
 
 def test_build_scene_rejects_unknown_names(factory):
-    with pytest.raises(KeyError, match="unknown built-in scene 'box'; choose from corner, corner_glass, glossy"):
+    with pytest.raises(BatchError, match="unknown built-in scene 'box'; choose from corner, corner_glass, glossy"):
         build_scene("box")
 
 
@@ -97,7 +99,7 @@ def test_configure_unbiased_records_changes_and_keeps_biased_settings(factory):
     assert not cycles.use_adaptive_sampling and cycles.time_limit == 0 and cycles.sampling_pattern == "TABULATED_SOBOL"
     assert not scene.render.use_compositing and not scene.render.use_sequencer and scene.render.use_persistent_data
     assert (settings.file_format, settings.color_depth, settings.exr_codec) == ("OPEN_EXR", "32", "NONE")
-    assert render.resolution(scene) == (40, 30)
+    assert render_size(scene) == (40, 30)
     # What the user tests stays as it is: lint reports it.
     assert cycles.sample_clamp_indirect == 10.0 and cycles.blur_glossy == 1.0
     assert render.configure_unbiased(scene, spp=3, resolution=(40, 30)) == []
@@ -105,6 +107,41 @@ def test_configure_unbiased_records_changes_and_keeps_biased_settings(factory):
         render.configure_unbiased(scene, spp=0)
     with pytest.raises(render.RenderSetupError, match="^unknown device 'TPU'; use CPU, GPU or one of "):
         render.configure_unbiased(scene, device="TPU")
+    with pytest.raises(render.RenderSetupError) as info:
+        render.configure_unbiased(scene, sampling_pattern="SOBOL")
+    assert str(info.value) == (
+        "--sampling-pattern SOBOL is not a pattern of Blender 5.0.1 (it has AUTOMATIC, TABULATED_SOBOL, BLUE_NOISE)"
+    )
+
+
+def test_an_override_of_a_setting_the_job_fixes_is_refused(factory):
+    """What is rendered is what is recorded: --set cycles.samples=64 with --spp 1 would render 64 spp."""
+    scene = render.open_scene(None, "corner")
+    render.configure_unbiased(scene, spp=1, resolution=(64, 64))
+    for text, message in (
+        (
+            "cycles.samples=64",
+            "--set cycles.samples=64 changes cycles.samples (1 -> 64), which the job fixes: use --spp instead",
+        ),
+        (
+            "render.resolution_x=200",
+            "--set render.resolution_x=200 changes render.resolution_x (64 -> 200), which the job fixes: use "
+            "--resolution instead",
+        ),
+        (
+            "cycles.use_adaptive_sampling=true",
+            "--set cycles.use_adaptive_sampling=true changes cycles.use_adaptive_sampling (False -> True), which the "
+            "job fixes: every pass needs it as the batch tool sets it",
+        ),
+    ):
+        applied = apply_overrides(scene, [text])
+        with pytest.raises(render.RenderSetupError) as info:
+            render.check_fixed_settings(scene, 1, (64, 64), applied)
+        assert str(info.value) == message
+        apply_overrides(scene, [f"{applied[0]['path']}={str(applied[0]['old']).lower()}"])
+    render.check_fixed_settings(scene, 1, (64, 64), apply_overrides(scene, ["cycles.samples=1"]))  # unchanged: fine
+    # Without --resolution the size is the scene's to set: it is read back after the overrides and recorded.
+    render.check_fixed_settings(scene, 1, None, apply_overrides(scene, ["render.resolution_x=32"]))
 
 
 # -- passes ---------------------------------------------------------------------------------------------------

@@ -2,76 +2,81 @@
 
 After Jung, Hanika and Dachsbacher, "Detecting Bias in Monte Carlo Renderers using Welch's t-test", JCGT 9(2),
 2020. Equation numbers in comments refer to that paper. numpy and scipy only; no bpy.
+
+Names are imported on first use (PEP 562), so code that only accumulates passes (``welch_core.tiles``,
+``welch_core.formats``: numpy alone, as inside a stock Blender) never imports scipy, and a command that only
+reads a file starts fast.
 """
 
-from .colormap import MAP_MODES, colorize, histogram, map_values, overlay, pvalue_rgb, tonemap, upscale_tiles
-from .compare import TESTS, Comparison, compare, info_differences, seed_relation
-from .diagnostics import Normality, normality, split_halves
-from .effect import Effect, effect_sizes
-from .errors import GridMismatchError, SeedOverlapError, StatsFileError, WelchInputError
-from .formats import load_stats, read_exr, read_pfm, save_stats, write_exr, write_pfm, write_tile_pfms
-from .multitest import GlobalTest, bh_qvalues, combine_channels, global_test, holm, uniformity_pvalue
-from .tiles import RunInfo, TileStats, tile_sums
-from .ttest import (
-    PVALUE_METHODS,
-    Reason,
-    TTestResult,
-    paired_ttest,
-    pvalue_as_erf,
-    pvalue_exact,
-    pvalue_gauss,
-    two_sided_pvalue,
-    welch_from_stats,
-    welch_ttest,
-)
+from __future__ import annotations
 
-__all__ = [
-    "MAP_MODES",
-    "PVALUE_METHODS",
-    "TESTS",
-    "Comparison",
-    "Effect",
-    "GlobalTest",
-    "GridMismatchError",
-    "Normality",
-    "Reason",
-    "RunInfo",
-    "SeedOverlapError",
-    "StatsFileError",
-    "TTestResult",
-    "TileStats",
-    "WelchInputError",
-    "bh_qvalues",
-    "colorize",
-    "combine_channels",
-    "compare",
-    "effect_sizes",
-    "global_test",
-    "histogram",
-    "holm",
-    "info_differences",
-    "load_stats",
-    "map_values",
-    "normality",
-    "overlay",
-    "paired_ttest",
-    "pvalue_as_erf",
-    "pvalue_exact",
-    "pvalue_gauss",
-    "pvalue_rgb",
-    "read_exr",
-    "read_pfm",
-    "save_stats",
-    "seed_relation",
-    "split_halves",
-    "tile_sums",
-    "tonemap",
-    "two_sided_pvalue",
-    "uniformity_pvalue",
-    "upscale_tiles",
-    "welch_from_stats",
-    "welch_ttest",
-    "write_exr",
-    "write_pfm",
-    "write_tile_pfms",
-]
+import importlib
+
+#: Public name -> the submodule that defines it.
+_EXPORTS = {
+    "MAP_MODES": "colormap",
+    "colorize": "colormap",
+    "histogram": "colormap",
+    "map_values": "colormap",
+    "overlay": "colormap",
+    "pvalue_rgb": "colormap",
+    "tonemap": "colormap",
+    "upscale_tiles": "colormap",
+    "TESTS": "comparison",
+    "Comparison": "comparison",
+    "compare": "comparison",
+    "seed_relation": "comparison",
+    "Normality": "diagnostics",
+    "normality": "diagnostics",
+    "split_halves": "diagnostics",
+    "Effect": "effect",
+    "effect_sizes": "effect",
+    "GridMismatchError": "errors",
+    "RunMismatchError": "errors",
+    "SeedOverlapError": "errors",
+    "StatsFileError": "errors",
+    "WelchInputError": "errors",
+    "read_exr": "exr",
+    "write_exr": "exr",
+    "load_stats": "formats",
+    "save_stats": "formats",
+    "GlobalTest": "multitest",
+    "bh_qvalues": "multitest",
+    "combine_channels": "multitest",
+    "global_test": "multitest",
+    "holm": "multitest",
+    "uniformity_pvalue": "multitest",
+    "RunInfo": "tiles",
+    "TileStats": "tiles",
+    "tile_sums": "tiles",
+    "PVALUE_METHODS": "ttest",
+    "Reason": "ttest",
+    "TTestResult": "ttest",
+    "paired_ttest": "ttest",
+    "pvalue_as_erf": "ttest",
+    "pvalue_exact": "ttest",
+    "pvalue_gauss": "ttest",
+    "two_sided_pvalue": "ttest",
+    "welch_from_stats": "ttest",
+    "welch_ttest": "ttest",
+    "Verdict": "verdict",
+}
+
+_SUBMODULES = frozenset(_EXPORTS.values()) | {"sequential"}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str):
+    if name in _SUBMODULES:
+        return importlib.import_module(f".{name}", __name__)
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value  # later lookups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(__all__) | _SUBMODULES)

@@ -13,18 +13,24 @@ class GridMismatchError(WelchInputError):
     """Two statistics whose tile grids (image size, tile size, channels) differ can't be compared or merged."""
 
 
+class RunMismatchError(WelchInputError):
+    """Two runs that are not one configuration (scene, renderer, device, spp, settings...) can't be merged."""
+
+
 class SeedOverlapError(WelchInputError):
     """The seed lists of two runs don't fit the test: unpaired needs disjoint seeds, paired identical ones."""
 
 
 class StatsFileError(WelchInputError):
-    """A statistics file that is missing, truncated, foreign or of an unknown format version."""
+    """A statistics file that is missing, truncated, foreign, inconsistent or of an unknown format version."""
 
 
-def check_int(name: str, value, minimum: int = 1) -> int:
-    """Return `value` as an int, or raise if it isn't an integer >= `minimum`."""
+def check_int(name: str, value, minimum: int = 1, maximum: int | None = None) -> int:
+    """Return `value` as an int, or raise if it isn't an integer in [`minimum`, `maximum`]."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
         raise WelchInputError(f"`{name}` must be an integer >= {minimum}, got {value!r}")
+    if maximum is not None and value > maximum:
+        raise WelchInputError(f"`{name}` must be an integer <= {maximum}, got {value!r}")
     return int(value)
 
 

@@ -1,241 +1,299 @@
-"""Files: the statistics file, render passes and maps as EXR, and tile sums as PFM for other tools.
+"""The statistics file, and the one way this tool writes any file (atomically, checked).
 
-Statistics file (``.npz``, format ``welch-bias-stats`` version 1), loaded with ``allow_pickle=False``:
+Statistics file (``.npz``, format ``welch-bias-stats`` version 2), loaded with ``allow_pickle=False``:
 
 =============  ==============================  ===========================================================
 key            dtype, shape                    meaning
 =============  ==============================  ===========================================================
 format         str                             "welch-bias-stats"
-version        int                             1
-meta           str (JSON)                      height, width, tile, channels and the RunInfo fields
+version        int                             2
+meta           str (JSON)                      height, width, tile, channels, the RunInfo fields and the
+                                               seeds of passes with non-finite tile sums (``--on-nan keep``)
 seeds          int64 (n,)                      seed of each pass
 sums           float64 (n, ty, tx, c)          each pass's tile sums (the Welch samples)
-mean, m2       float64 (ty, tx, c)             Welford mean and second moment about the mean
-mean_image     float32 (h, w, c), optional     per-pixel mean, top row first
+pixel_sum      float32 (h, w, c), optional     per-pixel sum over the passes, top row first (for display)
 =============  ==============================  ===========================================================
 
-Writes are atomic (a temporary file renamed over the target), so a crash never leaves a partial file in place of
-a good one.
+Version 1 files (which also stored a mean and M2, and a mean image instead of the pixel sum) are still read;
+their stored moments must agree with their sums.
+
+Loading reads only these keys, checks every header (dtype, shape, size against the metadata and against the
+bytes in the file) before allocating, and checks the content against itself; any failure is a
+`StatsFileError` with one line that names the file.
 """
 
 from __future__ import annotations
 
 import json
 import os
-import tempfile
+import secrets
 import zipfile
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-import numpy.typing as npt
 
 from .errors import StatsFileError, WelchInputError
-from .tiles import RunInfo, TileStats
+from .tiles import MAX_IMAGE_SIDE, RunInfo, TileStats
 
-__all__ = [
-    "FORMAT_NAME",
-    "FORMAT_VERSION",
-    "load_stats",
-    "read_exr",
-    "read_pfm",
-    "save_stats",
-    "write_exr",
-    "write_pfm",
-    "write_tile_pfms",
-]
+__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "atomic_write", "load_stats", "save_stats"]
 
 FORMAT_NAME = "welch-bias-stats"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+READABLE_VERSIONS = (1, 2)
+
+#: Seeds are non-negative and fit int64 (ingested passes of unknown seed get a 62-bit id from their content).
+MAX_SEED_VALUE = 2**63 - 1
 
 
-def _atomic_write(path: str | os.PathLike, write) -> None:
-    """Call `write(file)` on a temporary file next to `path`, then rename it over `path`."""
+def atomic_write(path: str | os.PathLike, write: Callable, verify: Callable[[Path], None] | None = None) -> None:
+    """Call `write(file)` on a new temporary file next to `path`, `verify(temporary_path)` if given, then rename
+    it over `path`. Any failure (a full disk, a failed check) removes the temporary file, leaves `path` as it was,
+    and raises. The file gets the permissions of the user's umask, like any file a program creates.
+    """
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    # A short temporary name: a long but legal target name must not make it too long for the file system.
+    tmp = path.parent / f".welch-{secrets.token_hex(6)}.tmp"
     try:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)  # 0o666 & ~umask
         with os.fdopen(fd, "wb") as f:
             write(f)
             f.flush()
             os.fsync(f.fileno())
+        if verify is not None:
+            verify(tmp)
         os.replace(tmp, path)
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        tmp.unlink(missing_ok=True)
         raise
 
 
 def save_stats(path: str | os.PathLike, stats: TileStats) -> None:
-    """Write `stats` to `path` atomically (see the module docstring for the format)."""
+    """Write `stats` to `path` atomically (see the module docstring for the format).
+
+    Raises WelchInputError with one line (naming the file and the reason) when the file can't be written.
+    """
+    sums = stats.sums
+    nonfinite = [seed for seed, s in zip(stats.seeds, sums, strict=True) if not np.isfinite(s).all()]
     meta = {
         "height": stats.height,
         "width": stats.width,
         "tile": stats.tile,
         "channels": stats.channels,
         "info": stats.info.to_json(),
+        "nonfinite_seeds": nonfinite,
     }
     arrays = {
         "format": np.array(FORMAT_NAME),
-        "version": np.array(FORMAT_VERSION),
-        "meta": np.array(json.dumps(meta, sort_keys=True)),
+        "version": np.array(FORMAT_VERSION, dtype=np.int64),
+        "meta": np.array(json.dumps(meta, sort_keys=True, allow_nan=False)),
         "seeds": np.array(stats.seeds, dtype=np.int64),
-        "sums": stats.sums,
-        "mean": stats.mean,
-        "m2": stats.m2,
+        "sums": sums,
     }
-    if stats.mean_image is not None:
-        arrays["mean_image"] = stats.mean_image
+    if stats.pixel_sum is not None:
+        arrays["pixel_sum"] = stats.pixel_sum
+
+    def write(f) -> None:
+        # zipfile directly instead of np.savez: the archive is closed on every path, so a failed write raises
+        # here once instead of again from a garbage-collected ZipFile.
+        with zipfile.ZipFile(f, "w", zipfile.ZIP_STORED, allowZip64=True) as archive:
+            for key, value in arrays.items():
+                with archive.open(f"{key}.npy", "w", force_zip64=True) as member:
+                    np.lib.format.write_array(member, np.asarray(value), allow_pickle=False)
+
+    def verify(tmp: Path) -> None:
+        with zipfile.ZipFile(tmp) as archive:
+            bad = archive.testzip()  # reads every member back and checks its CRC
+            if bad is not None or sorted(archive.namelist()) != sorted(f"{k}.npy" for k in arrays):
+                raise OSError(f"the written file does not read back ({bad or 'members missing'})")
+
     try:
-        _atomic_write(path, lambda f: np.savez(f, **arrays))
-    except OSError as exc:
-        raise WelchInputError(f"can't write statistics file {os.fspath(path)!r}: {exc.strerror or exc}") from None
+        atomic_write(path, write, verify)
+    except (OSError, zipfile.BadZipFile) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise WelchInputError(f"can't write statistics file {os.fspath(path)!r}: {reason}") from None
 
 
 def load_stats(path: str | os.PathLike) -> TileStats:
-    """Read a statistics file; anything missing, truncated, foreign or of another version raises StatsFileError."""
+    """Read a statistics file; anything missing, truncated, foreign, inconsistent or of another version raises
+    StatsFileError with one line."""
     name = os.fspath(path)
     try:
-        loaded = np.load(name, allow_pickle=False)
-        if isinstance(loaded, np.ndarray):  # a plain .npy array, not an archive: rejected below
-            arrays = None
-        else:
-            with loaded as data:
-                arrays = {key: data[key] for key in data.files}
+        archive = zipfile.ZipFile(name)
     except FileNotFoundError:
         raise StatsFileError(f"statistics file {name!r} does not exist") from None
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+    except (OSError, zipfile.BadZipFile, ValueError, EOFError) as exc:
+        if isinstance(exc, zipfile.BadZipFile) and _is_npy(name):
+            raise StatsFileError(f"{name!r} is not a {FORMAT_NAME} file (a single numpy array)") from None
         raise StatsFileError(f"{name!r} is not a readable statistics file ({type(exc).__name__}: {exc})") from None
-    if not isinstance(arrays, dict) or str(arrays.get("format", "")) != FORMAT_NAME:
-        raise StatsFileError(f"{name!r} is not a {FORMAT_NAME} file")
-    version = int(arrays.get("version", -1))
-    if version != FORMAT_VERSION:
-        raise StatsFileError(f"{name!r} has format version {version}; this tool reads version {FORMAT_VERSION}")
-    try:
-        return _stats_from_arrays(arrays)
-    except (KeyError, ValueError, TypeError) as exc:
-        raise StatsFileError(f"{name!r} is damaged: {exc}") from None
+    with archive:
+        reader = _Reader(name, archive)
+        try:
+            return reader.stats()
+        except (zipfile.BadZipFile, OSError, EOFError, ValueError, KeyError) as exc:
+            if isinstance(exc, StatsFileError):
+                raise
+            raise StatsFileError(f"{name!r} is not a readable statistics file ({type(exc).__name__}: {exc})") from None
 
 
-def _stats_from_arrays(arrays: dict) -> TileStats:
-    meta = json.loads(str(arrays["meta"]))
-    stats = TileStats(
-        meta["height"], meta["width"], meta["tile"], meta["channels"], RunInfo.from_json(meta["info"]), False
-    )
-    seeds, sums = arrays["seeds"], arrays["sums"]
-    shape = stats.grid_shape
-    if sums.shape != (len(seeds), *shape) or arrays["mean"].shape != shape or arrays["m2"].shape != shape:
-        raise ValueError(f"array shapes {sums.shape}, {arrays['mean'].shape} don't fit the grid {shape}")
-    stats.seeds = stats._check_new_seeds(seeds.tolist())
-    stats.count = len(seeds)
-    stats._sums = list(sums.astype(np.float64))
-    stats.mean = arrays["mean"].astype(np.float64)
-    stats.m2 = arrays["m2"].astype(np.float64)
-    if "mean_image" in arrays:
-        image = arrays["mean_image"]
-        if image.shape != (stats.height, stats.width, stats.channels):
-            raise ValueError(f"mean image of shape {image.shape} doesn't fit {stats.height}x{stats.width}")
-        stats._pixel_sum = image.astype(np.float32) * np.float32(stats.count)
-    return stats
-
-
-# -- EXR ---------------------------------------------------------------------------------------------------
-
-
-def read_exr(path: str | os.PathLike) -> np.ndarray:
-    """Read the colour of an EXR file as an H×W×3 float32 array, top row first.
-
-    Takes channels R, G, B, else a ``Combined`` layer's ``<layer>.R/G/B`` (Blender's ``ViewLayer.Combined.R``),
-    else the first layer (by name) that has R, G and B.
-    """
-    import OpenEXR  # imported here: only file-reading code needs it
-
-    name = os.fspath(path)
-    if not os.path.exists(name):
-        raise WelchInputError(f"EXR file {name!r} does not exist")
-    try:
-        channels = OpenEXR.File(name).channels()  # plain R, G, B (A) come interleaved: the fast path for passes
-        for interleaved in ("RGB", "RGBA"):
-            if interleaved in channels:
-                return channels[interleaved].pixels[..., :3].astype(np.float32, copy=False)
-        channels = OpenEXR.File(name, separate_channels=True).channels()
-    except Exception as exc:  # OpenEXR raises bare RuntimeError/Exception for damaged files
-        raise WelchInputError(f"{name!r} is not a readable EXR file ({exc})") from None
-    layers = sorted({k.rsplit(".", 1)[0] + "." for k in channels if "." in k})
-    # A "Combined" layer before any other (Blender's AO, DiffCol, ... passes sort before it by name).
-    for prefix in [""] + sorted(layers, key=lambda layer: not layer.endswith("Combined.")):
-        keys = [prefix + c for c in "RGB"]
-        if all(k in channels for k in keys):
-            return np.stack([channels[k].pixels.astype(np.float32) for k in keys], axis=-1)
-    raise WelchInputError(f"{name!r} has no R, G, B channels (it has {sorted(channels)})")
-
-
-def write_exr(path: str | os.PathLike, image: npt.ArrayLike) -> None:
-    """Write an H×W or H×W×C float array as an uncompressed 32-bit float EXR (atomically)."""
-    import OpenEXR
-
-    img = np.asarray(image, dtype=np.float32)
-    if img.ndim == 2:
-        channels = {"Y": img}
-    elif img.ndim == 3 and img.shape[2] in (1, 3, 4):
-        channels = {name: np.ascontiguousarray(img[..., i]) for i, name in enumerate("RGBA"[: img.shape[2]])}
-        if img.shape[2] == 1:
-            channels = {"Y": channels.pop("R")}
-    else:
-        raise WelchInputError(f"`image` must be H×W or H×W×(1, 3 or 4), got shape {img.shape}")
-    header = {"compression": OpenEXR.NO_COMPRESSION, "type": OpenEXR.scanlineimage}
-    path = Path(path)
-    with tempfile.TemporaryDirectory(dir=path.parent) as tmp:
-        tmp_file = os.path.join(tmp, path.name)
-        OpenEXR.File(header, channels).write(tmp_file)
-        os.replace(tmp_file, path)
-
-
-# -- PFM (the format of the paper's welch.c and its ports) ---------------------------------------------------
-
-
-def write_pfm(path: str | os.PathLike, image: npt.ArrayLike) -> None:
-    """Write an H×W×3 (or H×W) array as little-endian float32 PFM; PFM stores the bottom row first."""
-    img = np.asarray(image, dtype="<f4")
-    if img.ndim == 3 and img.shape[2] == 3:
-        kind = b"PF"
-    elif img.ndim == 2:
-        kind = b"Pf"
-    else:
-        raise WelchInputError(f"`image` must be H×W×3 or H×W for PFM, got shape {img.shape}")
-    header = kind + b"\n%d %d\n-1.0\n" % (img.shape[1], img.shape[0])
-    _atomic_write(path, lambda f: f.write(header + np.ascontiguousarray(img[::-1]).tobytes()))
-
-
-def read_pfm(path: str | os.PathLike) -> np.ndarray:
-    """Read a PFM file as an H×W×3 (or H×W) float32 array, top row first."""
-    name = os.fspath(path)
+def _is_npy(name: str) -> bool:
     try:
         with open(name, "rb") as f:
-            kind = f.readline().strip()
-            size = f.readline().split()
-            scale = float(f.readline())
-            data = f.read()
-        width, height = int(size[0]), int(size[1])
-    except (OSError, ValueError, IndexError) as exc:
-        raise WelchInputError(f"{name!r} is not a readable PFM file ({exc})") from None
-    if kind not in (b"PF", b"Pf"):
-        raise WelchInputError(f"{name!r} is not a PFM file (header {kind[:8]!r})")
-    depth = 3 if kind == b"PF" else 1
-    dtype = "<f4" if scale < 0 else ">f4"  # negative scale = little-endian
-    count = width * height * depth
-    if len(data) < 4 * count:
-        raise WelchInputError(f"{name!r} is truncated: {len(data)} bytes of pixel data, expected {4 * count}")
-    img = np.frombuffer(data, dtype=dtype, count=count).astype(np.float32)
-    img = img.reshape((height, width, depth) if depth == 3 else (height, width))
-    return np.ascontiguousarray(img[::-1])
+            return f.read(6) == b"\x93NUMPY"
+    except OSError:
+        return False
 
 
-def write_tile_pfms(prefix: str | os.PathLike, stats: TileStats) -> tuple[str, str]:
-    """Write the sum and the sum of squares of the Welch samples as tile-resolution PFMs (``PREFIX_sum.pfm``,
-    ``PREFIX_sumsq.pfm``), the buffers the paper's implementation keeps (§4.2), for cross-checks with its tools.
+def _memory_limit() -> int:
+    """Bytes an array of a file may take: half the machine's memory."""
+    try:
+        return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") // 2
+    except (ValueError, OSError, AttributeError):
+        return 8 * 2**30
 
-    float32 loses precision in the sum of squares: use these files for comparison, not as the primary store.
-    """
-    sum_path, sq_path = f"{os.fspath(prefix)}_sum.pfm", f"{os.fspath(prefix)}_sumsq.pfm"
-    total = stats.mean * stats.n
-    write_pfm(sum_path, total)
-    write_pfm(sq_path, stats.m2 + total * stats.mean)  # sum of squares = M2 + n * mean²
-    return sum_path, sq_path
+
+class _Reader:
+    """Reads the known members of one statistics archive, each checked before it is allocated."""
+
+    def __init__(self, name: str, archive: zipfile.ZipFile):
+        self.name = name
+        self.archive = archive
+        self.members = {info.filename.removesuffix(".npy"): info for info in archive.infolist()}
+
+    def fail(self, reason: str) -> StatsFileError:
+        return StatsFileError(f"{self.name!r} is damaged: {reason}")
+
+    def array(self, key: str, kinds: str, shape: tuple | None, required: bool = True) -> np.ndarray | None:
+        """Member `key` after checking its header: dtype kind in `kinds`, `shape` (None: any), size."""
+        info = self.members.get(key)
+        if info is None:
+            if required:
+                raise self.fail(f"it has no {key!r} array")
+            return None
+        with self.archive.open(info) as member:
+            version = np.lib.format.read_magic(member)
+            read_header = (
+                np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+            )
+            found_shape, fortran, dtype = read_header(member)
+            if dtype.hasobject:
+                raise self.fail(f"{key!r} holds Python objects, which this tool never loads")
+            if dtype.kind not in kinds:
+                raise self.fail(f"{key!r} has dtype {dtype}, expected {_KIND_WORDS[kinds]}")
+            if shape is not None and found_shape != shape:
+                raise self.fail(f"{key!r} has shape {found_shape}, expected {shape}")
+            size = int(np.prod(found_shape, dtype=np.float64)) * dtype.itemsize
+            if size > info.file_size:
+                raise self.fail(f"{key!r} claims {size} bytes but the file holds {info.file_size}")
+            if size > _memory_limit():
+                raise StatsFileError(f"{self.name!r}: {key!r} needs {size / 2**30:.1f} GiB, more than half of memory")
+            member.seek(0)
+            return np.lib.format.read_array(member, allow_pickle=False)
+
+    def scalar(self, key: str, kinds: str):
+        value = self.array(key, kinds, ())
+        return value.item()
+
+    def stats(self) -> TileStats:
+        if "format" not in self.members or self.scalar_or_none("format", "U") != FORMAT_NAME:
+            raise StatsFileError(f"{self.name!r} is not a {FORMAT_NAME} file")
+        if "version" not in self.members:
+            raise StatsFileError(f"{self.name!r} has no format version; this tool reads versions 1 and 2")
+        version = self.array("version", "iufcUSb", None)
+        if version.shape != () or version.dtype.kind not in "iu":
+            raise StatsFileError(f"{self.name!r} has a format version that is not an integer: {_short(version)}")
+        version = int(version)
+        if version not in READABLE_VERSIONS:
+            raise StatsFileError(f"{self.name!r} has format version {version}; this tool reads versions 1 and 2")
+        meta = self.meta()
+        height, width, tile, channels = (meta[k] for k in ("height", "width", "tile", "channels"))
+        try:
+            info = RunInfo.from_json(meta["info"])
+            grid = TileStats(height, width, tile, channels, info, keep_mean_image=False).grid_shape
+        except (WelchInputError, TypeError) as exc:
+            raise self.fail(str(exc)) from None
+        seeds = self.array("seeds", "iu", None)
+        if seeds.ndim != 1:
+            raise self.fail(f"'seeds' must be one-dimensional, got shape {seeds.shape}")
+        if len(seeds) and (seeds.min() < 0 or seeds.max() > MAX_SEED_VALUE):
+            raise self.fail(f"'seeds' must lie in 0..{MAX_SEED_VALUE}")
+        if len(np.unique(seeds)) != len(seeds):
+            raise self.fail("'seeds' repeats a seed")
+        sums = self.array("sums", "f", (len(seeds), *grid))
+        self.check_finite(sums, seeds, meta.get("nonfinite_seeds", []))
+        if version == 1:
+            pixel_sum = self.version1_pixel_sum(len(seeds), height, width, channels)
+            self.check_version1_moments(sums, grid)
+        else:
+            pixel_sum = self.array("pixel_sum", "f", (height, width, channels), required=False)
+        return TileStats.from_sums(sums, seeds.tolist(), height, width, tile, info, pixel_sum)
+
+    def scalar_or_none(self, key: str, kinds: str):
+        try:
+            return self.scalar(key, kinds)
+        except StatsFileError:
+            return None
+
+    def meta(self) -> dict:
+        text = self.scalar("meta", "U")
+        try:
+            meta = json.loads(text)
+        except ValueError as exc:
+            raise self.fail(f"its metadata is not JSON ({exc})") from None
+        if not isinstance(meta, dict):
+            raise self.fail("its metadata is not a JSON object")
+        for key, limit in (
+            ("height", MAX_IMAGE_SIDE),
+            ("width", MAX_IMAGE_SIDE),
+            ("tile", MAX_IMAGE_SIDE),
+            ("channels", 64),
+        ):
+            value = meta.get(key)
+            if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= limit:
+                raise self.fail(f"metadata {key!r} must be an integer in 1..{limit}, got {_short(value)}")
+        if "info" not in meta:
+            raise self.fail("its metadata has no run info")
+        nonfinite = meta.get("nonfinite_seeds", [])
+        if not isinstance(nonfinite, list) or not all(isinstance(s, int) for s in nonfinite):
+            raise self.fail(f"metadata 'nonfinite_seeds' must be a list of integers, got {_short(nonfinite)}")
+        return meta
+
+    def check_finite(self, sums: np.ndarray, seeds: np.ndarray, recorded: list[int]) -> None:
+        """Non-finite tile sums are legitimate only for passes the file records as such (``--on-nan keep``)."""
+        finite = np.isfinite(sums).all(axis=(1, 2, 3))
+        found = set(seeds[~finite].tolist())
+        if found != set(recorded):
+            unexpected = sorted(found - set(recorded))
+            if unexpected:
+                raise self.fail(f"the pass with seed {unexpected[0]} has non-finite tile sums the file does not record")
+            raise self.fail("it records non-finite passes that its sums do not have")
+
+    def version1_pixel_sum(self, n: int, height: int, width: int, channels: int) -> np.ndarray | None:
+        image = self.array("mean_image", "f", (height, width, channels), required=False)
+        return None if image is None else image.astype(np.float32) * np.float32(n)
+
+    def check_version1_moments(self, sums: np.ndarray, grid: tuple) -> None:
+        """Version 1 stored a mean and M2 beside the sums: they must say the same (a mismatch made `compare` report
+        bias between identical passes)."""
+        mean, m2 = self.array("mean", "f", grid), self.array("m2", "f", grid)
+        n = len(sums)
+        if n == 0:
+            return
+        with np.errstate(invalid="ignore", over="ignore"):
+            expected_mean = sums.mean(axis=0)
+            expected_m2 = ((sums - expected_mean) ** 2).sum(axis=0)
+            spread = np.sqrt(expected_m2 / n)
+            # Slack for the streaming update that wrote version 1 (rounding, not disagreement).
+            mean_ok = np.abs(mean - expected_mean) <= 1e-8 * (np.abs(expected_mean) + spread) + 1e-300
+            m2_ok = np.abs(m2 - expected_m2) <= 1e-6 * expected_m2 + 1e-12 * n * expected_mean**2 + 1e-300
+        checked = np.isfinite(expected_mean) & np.isfinite(expected_m2)
+        if not (mean_ok | ~checked).all() or not (m2_ok | ~checked).all():
+            raise self.fail("its stored means or second moments contradict its per-pass sums")
+
+
+_KIND_WORDS = {"iu": "integers", "f": "floats", "U": "a string", "iufcUSb": "a number"}
+
+
+def _short(value) -> str:
+    text = repr(value.tolist() if isinstance(value, np.ndarray) else value)
+    return text if len(text) <= 40 else text[:37] + "..."

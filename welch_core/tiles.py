@@ -1,14 +1,17 @@
-"""Welch samples from render passes: per-tile sums, accumulated per tile and colour channel (paper §4.1–4.2).
+"""Welch samples from render passes: per-tile sums, kept per pass, per tile and colour channel (paper §4.1–4.2).
 
 A *pass* is one independent render of the image (its own seed), an H×W×C float array, top row first. The Welch
 sample of a tile is the sum of the pass's pixel values over the tile (§4.1: one MC sample per pixel, summed; the
 constant 1/tile² normalisation is skipped as in the paper). Incomplete tiles at the right and bottom edges are
 dropped.
 
-`TileStats` keeps, per tile and channel, the count, the mean and the second moment about the mean (Welford's update,
-Chan's merge: exact to rounding in float64, no sum-of-squares cancellation) and also every pass's tile sums: the
-paired test, the normality diagnostics, re-tiling and subsetting need them, and they are small (1080p at 32×32
-tiles is 2040×3 numbers a pass).
+`TileStats` keeps every pass's tile sums, and they are its one source of truth: the paired test, the normality
+diagnostics, re-tiling, subsetting and merging need them anyway, and they are small (1080p at 32×32 tiles is
+2040×3 numbers a pass). The mean and the second moment about the mean (M2) are derived from them when asked for,
+by a two-pass sum shifted by the first pass: exact to rounding in float64, no sum-of-squares cancellation, and
+merging runs is a concatenation, so merged equals accumulated exactly.
+
+numpy only: this module runs inside a stock Blender.
 """
 
 from __future__ import annotations
@@ -20,27 +23,60 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .errors import GridMismatchError, WelchInputError, check_int
+from .errors import GridMismatchError, RunMismatchError, WelchInputError, check_int
 
-__all__ = ["RunInfo", "TileStats", "tile_sums"]
+__all__ = ["MAX_IMAGE_SIDE", "MAX_SPP", "RunInfo", "TileStats", "tile_sums"]
+
+#: Cycles' largest render side (it clamps larger resolutions to this) and largest sample count (2**24).
+MAX_IMAGE_SIDE = 65536
+MAX_SPP = 2**24
+
+#: Fields of RunInfo that say which configuration made the passes: runs merge (and resume) only when all agree.
+IDENTITY_FIELDS = (
+    "scene",
+    "scene_id",
+    "renderer",
+    "renderer_version",
+    "build_hash",
+    "device",
+    "sampling_pattern",
+    "spp",
+    "settings_hash",
+    "overrides",
+)
 
 
 @dataclass(frozen=True)
 class RunInfo:
-    """What produced the passes: travels with the statistics so `compare` can say what differs."""
+    """What produced the passes: travels with the statistics so runs can be told apart and differences named.
+
+    `scene` is a name for people (a file name, a built-in scene); `scene_id` is what fixes the scene's content
+    (``sha256:<hex>`` of a .blend, ``builtin:<name>:<builder version>``); `settings` are the render settings that
+    change the converged image, `settings_hash` their hash together with the overrides.
+    """
 
     spp: int = 1
     renderer: str = "unknown"
     renderer_version: str = ""
+    build_hash: str = ""
     device: str = ""
     sampling_pattern: str = ""
     scene: str = ""
+    scene_id: str = ""
     settings: dict[str, Any] = field(default_factory=dict)
     settings_hash: str = ""
     overrides: tuple[str, ...] = ()
 
     def __post_init__(self):
-        check_int("spp", self.spp)
+        check_int("spp", self.spp, maximum=MAX_SPP)
+        for name in ("renderer", "renderer_version", "build_hash", "device", "sampling_pattern", "scene", "scene_id"):
+            value = getattr(self, name)
+            if not isinstance(value, str):
+                raise WelchInputError(f"`{name}` must be a string, got {type(value).__name__} {value!r:.40}")
+        if not isinstance(self.settings, dict):
+            raise WelchInputError(f"`settings` must be a dict, got {type(self.settings).__name__}")
+        if isinstance(self.overrides, str) or not all(isinstance(o, str) for o in self.overrides):
+            raise WelchInputError(f"`overrides` must be a list of strings, got {self.overrides!r:.60}")
         object.__setattr__(self, "overrides", tuple(self.overrides))
 
     def to_json(self) -> dict[str, Any]:
@@ -48,8 +84,18 @@ class RunInfo:
 
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> RunInfo:
+        """The inverse of `to_json`; keys this version does not know are ignored (files of later versions)."""
+        if not isinstance(data, dict):
+            raise WelchInputError(f"run info must be a JSON object, got {type(data).__name__}")
         known = {f.name for f in dataclasses.fields(cls)}
-        return cls(**{k: v for k, v in data.items() if k in known})
+        values = {k: v for k, v in data.items() if k in known}
+        if isinstance(values.get("overrides"), list):
+            values["overrides"] = tuple(values["overrides"])
+        return cls(**values)
+
+    def identity(self) -> dict[str, Any]:
+        """What must agree for two runs to be one configuration."""
+        return {name: getattr(self, name) for name in IDENTITY_FIELDS}
 
 
 def tile_sums(image: npt.ArrayLike, tile: int, channels: int = 3) -> np.ndarray:
@@ -84,6 +130,21 @@ def _check_image(image, channels: int) -> np.ndarray:
     return np.ascontiguousarray(image)
 
 
+def _check_seeds(seeds, taken=()) -> list[int]:
+    """`seeds` as ints; raise unless they are integers, distinct, and not in `taken`."""
+    checked = []
+    for seed in seeds:
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+            raise WelchInputError(f"`seed` must be an integer, got {seed!r}")
+        checked.append(int(seed))
+    seen = set(taken)
+    for seed in checked:
+        if seed in seen:
+            raise WelchInputError(f"seed {seed} is already in this run: passes must have distinct seeds")
+        seen.add(seed)
+    return checked
+
+
 class TileStats:
     """Per-tile, per-channel statistics of the Welch samples of one run (one renderer and setting, many seeds).
 
@@ -110,22 +171,56 @@ class TileStats:
         info: RunInfo | None = None,
         keep_mean_image: bool = True,
     ):
-        self.height = check_int("height", height)
-        self.width = check_int("width", width)
+        self.height = check_int("height", height, maximum=MAX_IMAGE_SIDE)
+        self.width = check_int("width", width, maximum=MAX_IMAGE_SIDE)
         self.tile = check_int("tile", tile)
         self.channels = check_int("channels", channels)
         if self.tile > min(self.height, self.width):
             raise WelchInputError(f"`tile` must not exceed the image size {self.width}x{self.height}, got {self.tile}")
+        if info is not None and not isinstance(info, RunInfo):
+            raise WelchInputError(f"`info` must be a RunInfo, got {type(info).__name__}")
         self.info = info if info is not None else RunInfo()
-        shape = self.grid_shape
-        self.count = 0
-        self.mean = np.zeros(shape)
-        self.m2 = np.zeros(shape)
         self.seeds: list[int] = []
-        self._sums: list[np.ndarray] = []  # one (tiles_y, tiles_x, channels) array per pass
-        self._stacked: np.ndarray | None = None
+        # Tile sums of the passes in the first `_count` rows; the capacity doubles as passes arrive.
+        self._buffer = np.empty((0, *self.grid_shape))
+        self._count = 0
+        self._moments: tuple[int, np.ndarray, np.ndarray] | None = None  # (count, mean, m2), derived from sums
         # float32 is enough for an image that is only displayed, and keeps add_pass near memory speed.
         self._pixel_sum = np.zeros((self.height, self.width, self.channels), np.float32) if keep_mean_image else None
+
+    @classmethod
+    def from_sums(
+        cls,
+        sums: npt.ArrayLike,
+        seeds,
+        height: int,
+        width: int,
+        tile: int,
+        info: RunInfo | None = None,
+        pixel_sum: np.ndarray | None = None,
+    ) -> TileStats:
+        """Statistics built from per-pass tile sums of shape (n, tiles_y, tiles_x, channels): the constructor for
+        loaders and derived runs.
+
+        `pixel_sum`, if given, is the per-pixel sum over the passes (H×W×channels), from which the mean image is
+        shown.
+        """
+        sums = np.asarray(sums, dtype=np.float64)
+        if sums.ndim != 4:
+            raise WelchInputError(f"`sums` must have 4 dimensions (n, tiles_y, tiles_x, channels), got {sums.shape}")
+        out = cls(height, width, tile, sums.shape[-1], info, keep_mean_image=False)
+        seeds = _check_seeds(seeds)
+        if sums.shape[1:] != out.grid_shape or len(sums) != len(seeds):
+            raise WelchInputError(f"`sums` must have shape (n_seeds, {out.grid_shape}), got {sums.shape}")
+        out._append(sums, seeds)
+        if pixel_sum is not None:
+            pixel_sum = np.asarray(pixel_sum, dtype=np.float32)
+            if pixel_sum.shape != (height, width, out.channels):
+                raise WelchInputError(
+                    f"`pixel_sum` must have shape {(height, width, out.channels)}, got {pixel_sum.shape}"
+                )
+            out._pixel_sum = pixel_sum.copy()
+        return out
 
     # -- shape of the grid ---------------------------------------------------------------------------------
 
@@ -146,29 +241,71 @@ class TileStats:
         """Pixels in the incomplete right and bottom tiles, which are not tested."""
         return self.height * self.width - self.tiles_y * self.tiles_x * self.tile**2
 
+    # -- the data and what derives from it -----------------------------------------------------------------
+
     @property
     def n(self) -> int:
-        return self.count
+        return self._count
+
+    count = n
 
     @property
     def sums(self) -> np.ndarray:
-        """Every pass's tile sums, shape (n, tiles_y, tiles_x, channels), in the order of `seeds`."""
-        if self._stacked is None or len(self._stacked) != len(self._sums):
-            self._stacked = np.stack(self._sums) if self._sums else np.empty((0, *self.grid_shape))
-        return self._stacked
+        """Every pass's tile sums, shape (n, tiles_y, tiles_x, channels), in the order of `seeds` (read-only)."""
+        view = self._buffer[: self._count]
+        view.flags.writeable = False
+        return view
+
+    @property
+    def mean(self) -> np.ndarray:
+        """Mean of the Welch samples per tile and channel (zeros while there are no passes)."""
+        return self._derived_moments()[0]
+
+    @property
+    def m2(self) -> np.ndarray:
+        """Second moment about the mean, sum of (x - mean)², per tile and channel."""
+        return self._derived_moments()[1]
 
     @property
     def variance(self) -> np.ndarray:
         """Unbiased sample variance of the Welch samples (NaN where n < 2)."""
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return self.m2 / (self.count - 1) if self.count > 1 else np.full(self.grid_shape, np.nan)
+        if self._count < 2:
+            return np.full(self.grid_shape, np.nan)
+        with np.errstate(invalid="ignore"):
+            return self.m2 / (self._count - 1)
+
+    @property
+    def pixel_sum(self) -> np.ndarray | None:
+        """Per-pixel sum over the passes (H×W×channels float32), if kept."""
+        if self._pixel_sum is None:
+            return None
+        return self._pixel_sum[..., : self.channels]
 
     @property
     def mean_image(self) -> np.ndarray | None:
         """Per-pixel mean over the passes (H×W×channels float32, top row first), if kept."""
-        if self._pixel_sum is None or self.count == 0:
+        if self._pixel_sum is None or self._count == 0:
             return None
-        return self._pixel_sum[..., : self.channels] / np.float32(self.count)
+        return self.pixel_sum / np.float32(self._count)
+
+    def _derived_moments(self) -> tuple[np.ndarray, np.ndarray]:
+        if self._moments is None or self._moments[0] != self._count:
+            sums = self.sums
+            if self._count == 0:
+                mean, m2 = np.zeros(self.grid_shape), np.zeros(self.grid_shape)
+            else:
+                # Two-pass moments shifted by the first pass: a constant tile gets exactly its value and m2 = 0
+                # (an unshifted mean can be an ulp off), and no sum-of-squares cancellation at a large offset.
+                with np.errstate(invalid="ignore"):
+                    shifted = sums - sums[0]
+                    offset = shifted.mean(axis=0)
+                    mean = sums[0] + offset
+                    m2 = ((shifted - offset) ** 2).sum(axis=0)
+            mean.flags.writeable = m2.flags.writeable = False
+            self._moments = (self._count, mean, m2)
+        return self._moments[1], self._moments[2]
+
+    # -- checks --------------------------------------------------------------------------------------------
 
     def same_grid(self, other: TileStats) -> None:
         """Raise GridMismatchError unless `other` has the same image size, tile size and channels."""
@@ -179,6 +316,20 @@ class TileStats:
                 f"statistics have different grids (width, height, tile, channels): {mine} against {theirs}"
             )
 
+    def same_run(self, other: TileStats, action: str = "merge") -> None:
+        """Raise unless `other` is the same configuration (grid and every identity field of RunInfo)."""
+        self.same_grid(other)
+        mine, theirs = self.info.identity(), other.info.identity()
+        for name in IDENTITY_FIELDS:
+            if mine[name] != theirs[name]:
+                a, b = mine[name], theirs[name]
+                if name == "settings_hash":  # name the setting, not the hash
+                    ours, yours = self.info.settings, other.info.settings
+                    key = next((k for k in sorted(set(ours) | set(yours)) if ours.get(k) != yours.get(k)), None)
+                    if key is not None:
+                        name, a, b = f"the setting {key}", ours.get(key), yours.get(key)
+                raise RunMismatchError(f"can't {action} runs that differ in {name}: {_short(a)} and {_short(b)}")
+
     # -- accumulation --------------------------------------------------------------------------------------
 
     def add_pass(self, image: npt.ArrayLike, seed: int, allow_nonfinite: bool = False) -> None:
@@ -187,7 +338,7 @@ class TileStats:
         Non-finite pixel values raise unless `allow_nonfinite`; then the affected tiles carry NaN/inf and are
         excluded from the test with the reason ``non_finite`` (never turned into a p-value).
         """
-        seed = self._check_new_seeds([seed])[0]
+        seed = _check_seeds([seed], self.seeds)[0]
         image = _check_image(image, self.channels)
         if image.shape[:2] != (self.height, self.width):
             raise WelchInputError(
@@ -198,16 +349,9 @@ class TileStats:
         if not allow_nonfinite and not np.isfinite(sums).all():
             bad = int((~np.isfinite(image[..., : self.channels])).sum())
             raise WelchInputError(f"pass with seed {seed} has {bad} non-finite pixel values")
-        # Welford's update of mean and M2 (the second moment about the mean), in float64.
-        self.count += 1
-        with np.errstate(invalid="ignore"):
-            delta = sums - self.mean
-            self.mean += delta / self.count
-            self.m2 += delta * (sums - self.mean)
-        self.seeds.append(seed)
-        self._sums.append(sums)
+        self._append(sums[None], [seed])
         if self._pixel_sum is not None:
-            if self.count == 1 and self._pixel_sum.shape != image.shape:
+            if self._count == 1 and self._pixel_sum.shape != image.shape:
                 # Sum all of the pass's channels (alpha too): a contiguous add is 5x faster than a strided one.
                 self._pixel_sum = np.zeros(image.shape, np.float32)
             if self._pixel_sum.shape == image.shape:
@@ -215,32 +359,50 @@ class TileStats:
             else:
                 self._pixel_sum[..., : self.channels] += image[..., : self.channels]
 
-    def merge(self, other: TileStats) -> TileStats:
-        """Return the statistics of both runs together (Chan et al.'s parallel merge); neither input changes.
+    def add_sums(self, sums: npt.ArrayLike, seeds, pixel_sum: np.ndarray | None = None) -> None:
+        """Add passes given as tile sums (n, tiles_y, tiles_x, channels), e.g. from a worker process, with the
+        per-pixel sum over those passes when the mean image is kept. All or nothing."""
+        sums = np.asarray(sums, dtype=np.float64)
+        seeds = _check_seeds(seeds, self.seeds)
+        if sums.shape != (len(seeds), *self.grid_shape):
+            raise WelchInputError(f"`sums` must have shape {(len(seeds), *self.grid_shape)}, got {sums.shape}")
+        if self._pixel_sum is not None:
+            if pixel_sum is None:
+                raise WelchInputError("`pixel_sum` is needed: this run keeps the mean image")
+            pixel_sum = np.asarray(pixel_sum, dtype=np.float32)
+            if pixel_sum.shape[:2] != (self.height, self.width) or pixel_sum.shape[2] < self.channels:
+                raise WelchInputError(f"`pixel_sum` must be {self.height}x{self.width}, got {pixel_sum.shape}")
+            self._pixel_sum[..., : self.channels] += pixel_sum[..., : self.channels]
+        self._append(sums, seeds)
 
-        Runs merge when they share the grid, spp and scene settings and have disjoint seeds.
+    def _append(self, sums: np.ndarray, seeds: list[int]) -> None:
+        needed = self._count + len(sums)
+        if needed > len(self._buffer):
+            grown = np.empty((max(needed, 2 * len(self._buffer), 8), *self.grid_shape))
+            grown[: self._count] = self._buffer[: self._count]
+            self._buffer = grown
+        self._buffer[self._count : needed] = sums
+        self._count = needed
+        self.seeds.extend(seeds)
+
+    def merge(self, other: TileStats) -> TileStats:
+        """Return the statistics of both runs together; neither input changes.
+
+        Runs merge when they are one configuration (`same_run`) and have disjoint seeds.
         """
-        self.same_grid(other)
-        if self.info.spp != other.info.spp:
-            raise WelchInputError(f"can't merge runs of different spp: {self.info.spp} and {other.info.spp}")
-        if self.info.settings_hash and other.info.settings_hash and self.info.settings_hash != other.info.settings_hash:
-            raise WelchInputError("can't merge runs whose scene settings differ (settings_hash)")
-        self._check_new_seeds(other.seeds)
-        merged = self._empty_like(keep_mean_image=self._pixel_sum is not None and other._pixel_sum is not None)
-        na, nb = self.count, other.count
-        n = na + nb
-        merged.count = n
-        if n:
-            with np.errstate(invalid="ignore"):
-                delta = other.mean - self.mean
-                merged.mean = self.mean + delta * (nb / n)
-                merged.m2 = self.m2 + other.m2 + delta**2 * (na * nb / n)
-        merged.seeds = self.seeds + other.seeds
-        merged._sums = self._sums + other._sums
-        if merged._pixel_sum is not None:
-            channels = slice(0, self.channels)
-            merged._pixel_sum = self._pixel_sum[..., channels] + other._pixel_sum[..., channels]
-        return merged
+        self.same_run(other, "merge")
+        _check_seeds(other.seeds, self.seeds)
+        keep = self._pixel_sum is not None and other._pixel_sum is not None
+        pixel_sum = self.pixel_sum + other.pixel_sum if keep else None
+        return TileStats.from_sums(
+            np.concatenate([self.sums, other.sums]),
+            self.seeds + other.seeds,
+            self.height,
+            self.width,
+            self.tile,
+            self.info,
+            pixel_sum,
+        )
 
     # -- derived runs --------------------------------------------------------------------------------------
 
@@ -248,67 +410,31 @@ class TileStats:
         """The statistics of the passes at `indices` (positions in `seeds`); the mean image is not kept."""
         indices = np.asarray(indices, dtype=np.intp)
         if len(np.unique(indices)) != len(indices) or (
-            len(indices) and not 0 <= indices.min() <= indices.max() < self.count
+            len(indices) and not 0 <= indices.min() <= indices.max() < self._count
         ):
-            raise WelchInputError(f"`indices` must be distinct positions in 0..{self.count - 1}")
-        return TileStats.from_sums(
-            self.sums[indices],
-            [self.seeds[i] for i in indices],
-            self.height,
-            self.width,
-            self.tile,
-            self.info,
-        )
+            raise WelchInputError(f"`indices` must be distinct positions in 0..{self._count - 1}")
+        seeds = [self.seeds[i] for i in indices]
+        return TileStats.from_sums(self.sums[indices], seeds, self.height, self.width, self.tile, self.info)
 
     def retile(self, factor: int) -> TileStats:
-        """The statistics at tile size `tile * factor`, from the stored per-pass sums (no re-rendering)."""
+        """The statistics at tile size `tile * factor`, from the stored per-pass sums (no re-rendering); the mean
+        image is not kept."""
         factor = check_int("factor", factor)
         tile = self.tile * factor
         if tile > min(self.height, self.width):
             raise WelchInputError(f"`factor` {factor} makes tiles larger than the image")
         ty, tx = self.height // tile, self.width // tile
         sums = self.sums[:, : ty * factor, : tx * factor]
-        sums = sums.reshape(self.count, ty, factor, tx, factor, self.channels).sum(axis=(2, 4))
+        sums = sums.reshape(self._count, ty, factor, tx, factor, self.channels).sum(axis=(2, 4))
         return TileStats.from_sums(sums, self.seeds, self.height, self.width, tile, self.info)
-
-    @classmethod
-    def from_sums(
-        cls, sums: np.ndarray, seeds, height: int, width: int, tile: int, info: RunInfo | None = None
-    ) -> TileStats:
-        """Statistics built from per-pass tile sums of shape (n, tiles_y, tiles_x, channels)."""
-        sums = np.asarray(sums, dtype=np.float64)
-        out = cls(height, width, tile, sums.shape[-1], info, keep_mean_image=False)
-        if sums.shape[1:] != out.grid_shape or len(sums) != len(seeds):
-            raise WelchInputError(f"`sums` must have shape (n_seeds, {out.grid_shape}), got {sums.shape}")
-        out.seeds = out._check_new_seeds(seeds)
-        out.count = len(out.seeds)
-        out._sums = list(sums)
-        out._stacked = sums
-        if out.count:
-            # Two-pass moments from the stored sums, shifted by the first pass: as exact as the streaming update,
-            # and a constant tile gets exactly its value and m2 = 0 (an unshifted mean can be off by an ulp).
-            shifted = sums - sums[0]
-            offset = shifted.mean(axis=0)
-            out.mean = sums[0] + offset
-            out.m2 = ((shifted - offset) ** 2).sum(axis=0)
-        return out
-
-    def _empty_like(self, keep_mean_image: bool) -> TileStats:
-        return TileStats(self.height, self.width, self.tile, self.channels, self.info, keep_mean_image)
-
-    def _check_new_seeds(self, seeds) -> list[int]:
-        checked = []
-        for seed in seeds:
-            if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
-                raise WelchInputError(f"`seed` must be an integer, got {seed!r}")
-            checked.append(int(seed))
-        repeated = sorted(set(checked) & set(self.seeds)) or sorted(s for s in set(checked) if checked.count(s) > 1)
-        if repeated:
-            raise WelchInputError(f"seed {repeated[0]} is already in this run: passes must have distinct seeds")
-        return checked
 
     def __repr__(self) -> str:
         return (
             f"TileStats({self.width}x{self.height}, tile={self.tile}, grid={self.tiles_x}x{self.tiles_y}, "
-            f"n={self.count}, spp={self.info.spp}, renderer={self.info.renderer!r})"
+            f"n={self._count}, spp={self.info.spp}, renderer={self.info.renderer!r})"
         )
+
+
+def _short(value) -> str:
+    text = repr(list(value)) if isinstance(value, tuple) else repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."

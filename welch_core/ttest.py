@@ -12,7 +12,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from scipy import special
 
 from .errors import WelchInputError
 
@@ -71,12 +70,16 @@ def pvalue_exact(t: npt.ArrayLike, df: npt.ArrayLike) -> np.ndarray:
 
     `stdtr(df, -|t|)` is the lower tail itself (an incomplete beta function), never 1 - cdf.
     """
+    from scipy import special  # here: the names of this module are needed where scipy is not (a stock Blender)
+
     t, df = np.asarray(t, dtype=float), np.asarray(df, dtype=float)
     return 2.0 * special.stdtr(df, -np.abs(t))
 
 
 def pvalue_gauss(t: npt.ArrayLike) -> np.ndarray:
     """Two-sided p of the standard normal, p_inf = erfc(|t| / sqrt 2) (eq. 5), computed without cancellation."""
+    from scipy import special
+
     return special.erfc(np.abs(np.asarray(t, dtype=float)) / np.sqrt(2.0))
 
 

@@ -1,0 +1,46 @@
+"""How numbers are written for people, in one place: p-values, percentages, durations, one-line messages."""
+
+from __future__ import annotations
+
+import math
+
+#: Characters kept of a message shown in one line (a status bar, a panel row).
+ONE_LINE_LENGTH = 200
+
+
+def p_value(p: float | None) -> str:
+    """'0.0123', '< 1e-300' where p underflowed, 'n/a' where it is undefined."""
+    if p is None or not math.isfinite(p):
+        return "n/a"
+    return "< 1e-300" if p == 0 else f"{p:.3g}"  # p underflows to 0 only far beyond any alpha
+
+
+def p_is(p: float | None) -> str:
+    """'= 0.0123' or '< 1e-300', for text like 'global p = 0.0123'."""
+    text = p_value(p)
+    return text if text.startswith("<") else f"= {text}"
+
+
+def percent(x: float | None, digits: int = 2) -> str:
+    """A relative difference as a signed percentage: '+1.25 %'; 'n/a' where undefined."""
+    if x is None or not math.isfinite(x):
+        return "n/a"
+    return f"{x * 100:+.{digits}f} %"
+
+
+def duration(seconds: float | None) -> str:
+    """'42 s', '2 min 05 s', '2 h 01 min'; '?' when unknown."""
+    if seconds is None or not math.isfinite(seconds) or seconds < 0:
+        return "?"
+    seconds = round(seconds)
+    if seconds < 60:
+        return f"{seconds} s"
+    if seconds < 3600:
+        return f"{seconds // 60} min {seconds % 60:02d} s"
+    return f"{seconds // 3600} h {seconds % 3600 // 60:02d} min"
+
+
+def one_line(text: str, limit: int = ONE_LINE_LENGTH) -> str:
+    """Whitespace collapsed to single spaces and cut to `limit` characters."""
+    text = " ".join(str(text).split())
+    return text if len(text) <= limit else text[: limit - 1] + "…"

@@ -1,0 +1,217 @@
+"""A render job, defined once: what to render, how, and where its statistics go.
+
+The job is the contract between everything that starts renders (the command line, the Blender add-on's
+background runs, a launcher that runs another Blender binary, workers) and the code that renders. It imports
+neither Blender nor scipy. Its command-line form is defined here too: `add_arguments` declares the options,
+`RenderJob.from_args` reads them back and `RenderJob.to_argv` writes a job as arguments of ``render``, so a job
+survives the trip through a subprocess unchanged.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+from dataclasses import dataclass
+
+from .errors import BatchError
+from .seeds import MAX_PASSES, format_seeds, parse_seeds
+
+#: Cycles' largest render side (it clamps larger values) and largest samples per pixel (2**24).
+MAX_RESOLUTION = 65536
+MAX_SPP = 2**24
+
+#: The devices a job may ask for: the CPU, the first GPU backend that has a device, or one backend.
+GPU_BACKENDS = ("OPTIX", "CUDA", "HIP", "METAL", "ONEAPI")
+DEVICES = ("CPU", "GPU", *GPU_BACKENDS)
+
+#: A pass with NaN/inf pixels: stop the run (what was accumulated is kept), skip the pass, or keep it (its
+#: tiles are excluded from the test with the reason non_finite).
+ON_NAN = ("stop", "skip", "keep")
+
+#: Sampling patterns tried in order when a job asks for none: Cycles' tabulated Sobol (the startup file's
+#: pattern), else the Sobol variant an older Blender has. What was used is recorded with the run.
+DEFAULT_SAMPLING_PATTERNS = ("TABULATED_SOBOL", "SOBOL_BURLEY", "SOBOL")
+
+
+@dataclass(frozen=True)
+class RenderJob:
+    """One run: one pass per seed of one configuration, accumulated into the statistics file `out`.
+
+    Exactly one of `blend` (a .blend file) and `scene` (a built-in scene) names the scene; neither means the file
+    the running Blender has open. `blender`, if set, is the Blender executable that renders the job (the job is
+    handed to it as arguments); otherwise the job renders in this process through bpy.
+    """
+
+    out: str
+    seeds: tuple[int, ...]
+    spp: int = 1
+    blend: str | None = None
+    scene: str | None = None
+    blend_scene: str | None = None
+    tile: int = 32
+    resolution: tuple[int, int] | None = None
+    device: str = "CPU"
+    sampling_pattern: str | None = None
+    overrides: tuple[str, ...] = ()
+    resume: bool = False
+    on_nan: str = "stop"
+    checkpoint_every: int = 8
+    blender: str | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "seeds", tuple(self.seeds))
+        object.__setattr__(self, "overrides", tuple(self.overrides))
+        if self.resolution is not None:
+            object.__setattr__(self, "resolution", tuple(self.resolution))
+        if not self.seeds:
+            raise BatchError("a render job needs at least one seed")
+        if len(self.seeds) > MAX_PASSES:
+            raise BatchError(f"a run takes at most {MAX_PASSES} seeds, got {len(self.seeds)}")
+        if self.blend is not None and self.scene is not None:
+            raise BatchError(f"give a .blend file or a built-in scene, not both ({self.blend}, {self.scene!r})")
+        _check_range("--spp", self.spp, 1, MAX_SPP)
+        _check_range("--tile", self.tile, 1, MAX_RESOLUTION)
+        _check_range("--checkpoint-every", self.checkpoint_every, 1, MAX_PASSES)
+        if self.resolution is not None:
+            if len(self.resolution) != 2:
+                raise BatchError(f"--resolution takes a width and a height, got {self.resolution}")
+            for side in self.resolution:
+                _check_range("--resolution", side, 1, MAX_RESOLUTION)
+            if self.tile > min(self.resolution):
+                width, height = self.resolution
+                raise BatchError(f"--tile {self.tile} is larger than the image {width}x{height}")
+        if self.device not in DEVICES:
+            raise BatchError(f"--device must be one of {', '.join(DEVICES)}, got {self.device!r}")
+        if self.on_nan not in ON_NAN:
+            raise BatchError(f"--on-nan must be one of {', '.join(ON_NAN)}, got {self.on_nan!r}")
+
+    def replace(self, **changes) -> RenderJob:
+        return dataclasses.replace(self, **changes)
+
+    # -- the command-line form -------------------------------------------------------------------------------
+
+    @classmethod
+    def from_args(cls, args: argparse.Namespace) -> RenderJob:
+        """The job described by arguments parsed with a parser that `add_arguments` set up."""
+        return cls(
+            out=args.out,
+            seeds=tuple(args.seeds),
+            spp=args.spp,
+            blend=args.blend,
+            scene=args.scene,
+            blend_scene=args.blend_scene,
+            tile=args.tile,
+            resolution=tuple(args.resolution) if args.resolution else None,
+            device=args.device,
+            sampling_pattern=args.sampling_pattern,
+            overrides=tuple(args.overrides),
+            resume=args.resume,
+            on_nan=args.on_nan,
+            checkpoint_every=args.checkpoint_every,
+            blender=args.blender,
+        )
+
+    def to_argv(self) -> list[str]:
+        """The arguments of ``render`` that describe this job (what `from_args` reads back)."""
+        argv = [self.blend] if self.blend is not None else []
+        if self.scene is not None:
+            argv += ["--scene", self.scene]
+        if self.blend_scene is not None:
+            argv += ["--blend-scene", self.blend_scene]
+        argv += ["--seeds", format_seeds(self.seeds), "--spp", str(self.spp), "--tile", str(self.tile)]
+        if self.resolution is not None:
+            argv += ["--resolution", *map(str, self.resolution)]
+        argv += ["--device", self.device]
+        if self.sampling_pattern is not None:
+            argv += ["--sampling-pattern", self.sampling_pattern]
+        for override in self.overrides:
+            argv += ["--set", override]
+        if self.resume:
+            argv.append("--resume")
+        if self.on_nan != "stop":
+            argv += ["--on-nan", self.on_nan]
+        if self.checkpoint_every != 8:
+            argv += ["--checkpoint-every", str(self.checkpoint_every)]
+        if self.blender is not None:
+            argv += ["--blender", self.blender]
+        return [*argv, "--out", self.out]
+
+
+def _check_range(option: str, value, low: int, high: int) -> None:
+    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+        raise BatchError(f"{option} must be an integer in {low}..{high}, got {value!r}")
+
+
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
+    return value
+
+
+def seeds_arg(text: str) -> list[int]:
+    """argparse type: ``A:B`` or ``S1,S2,...``."""
+    try:
+        return parse_seeds(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("--seeds ")) from None
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Declare the options of a render job (the ``render`` command's, and where else a job is described)."""
+    parser.add_argument("blend", nargs="?", metavar="SCENE.blend", help="scene file (default: the file Blender opened)")
+    parser.add_argument("--scene", help="a built-in scene instead of a file (see --help of `demo` for the list)")
+    parser.add_argument("--blend-scene", metavar="NAME", help="which scene of SCENE.blend (default: its active scene)")
+    parser.add_argument("--seeds", type=seeds_arg, required=True, help="A:B (half-open range) or S1,S2,...")
+    parser.add_argument(
+        "--spp", type=positive_int, required=True, help=f"samples per pixel per pass (at most {MAX_SPP})"
+    )
+    parser.add_argument("--tile", type=positive_int, default=32, help="tile edge in pixels (default 32, as the paper)")
+    parser.add_argument(
+        "--resolution",
+        type=positive_int,
+        nargs=2,
+        metavar=("W", "H"),
+        help=f"override the resolution (at most {MAX_RESOLUTION})",
+    )
+    parser.add_argument("--device", default="CPU", choices=DEVICES, help="Cycles device (default CPU)")
+    parser.add_argument(
+        "--sampling-pattern",
+        metavar="PATTERN",
+        help="Cycles sampling pattern, set explicitly and recorded (default: TABULATED_SOBOL, or the Sobol pattern "
+        "an older Blender has); one of the values the running Blender offers",
+    )
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="RNA.PATH=VALUE",
+        help='property override, repeatable: cycles.sample_clamp_indirect=0, lights["Light"].energy=100, '
+        'materials["Walls"].node_tree.nodes["Diffuse BSDF"].inputs["Color"].default_value=0.21,0.21,0.21,1',
+    )
+    parser.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")
+    parser.add_argument(
+        "--on-nan",
+        default="stop",
+        choices=ON_NAN,
+        help="a pass with NaN/inf pixels: stop the run, skip the pass, or keep it (its tiles are excluded)",
+    )
+    parser.add_argument(
+        "--checkpoint-every",
+        type=positive_int,
+        default=8,
+        metavar="N",
+        help="save the statistics file every N passes (default 8)",
+    )
+    parser.add_argument(
+        "--blender",
+        metavar="PATH",
+        help="render with this Blender executable (3.4 or later) instead of the bpy module; its version and build "
+        "are recorded",
+    )
+    parser.add_argument("--out", required=True, metavar="STATS", help="statistics file to write (.npz)")

@@ -1,0 +1,193 @@
+"""Run a render job in another process: this Python (``python -m batch render``) or any Blender binary
+(``blender -b ... --python batch/blender_entry.py -- render ...``), built from the job contract, with its
+progress events read back as they come.
+
+Used by ``render --blender``, the Blender add-on's background runs and the workers. Nothing here imports bpy.
+"""
+
+from __future__ import annotations
+
+import collections
+import os
+import queue
+import signal
+import subprocess
+import sys
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+
+from . import events
+from .errors import BatchError
+from .job import RenderJob
+
+#: The folder that holds the ``batch`` and ``welch_core`` packages (the repository or the installed extension).
+ROOT = Path(__file__).resolve().parent.parent
+ENTRY_SCRIPT = ROOT / "batch" / "blender_entry.py"
+
+#: Exit code Blender gives when the entry script itself fails (an import error, say): the tool's "internal".
+BLENDER_SCRIPT_FAILED = 4
+
+TAIL_LINES = 20  # output lines kept per stream for error messages
+
+
+@dataclass(frozen=True)
+class Command:
+    """A process to start: its arguments, environment and working folder (None: the caller's)."""
+
+    argv: list[str]
+    env: dict[str, str]
+    cwd: str | None = None
+
+
+def job_command(
+    job: RenderJob,
+    python: str = sys.executable,
+    python_paths: tuple[str, ...] | list[str] = (),
+    base_env: dict[str, str] | None = None,
+) -> Command:
+    """The command that renders `job` with ``--json-progress``.
+
+    With ``job.blender``: that Blender opens the .blend (or starts from factory settings for a built-in scene)
+    and runs the entry script with the job after ``--``. Without: ``python -m batch render`` with `python`, the
+    tool's folder and `python_paths` (where extra packages live) on ``PYTHONPATH``.
+    """
+    env = dict(os.environ if base_env is None else base_env)
+    env["PYTHONUNBUFFERED"] = "1"  # progress lines must arrive as they are printed, not when a buffer fills
+    child = job.replace(blender=None)
+    if job.blender:
+        # Blender's own Python must not pick up another Python's packages: a pip OpenEXR crashes Blender 3.4.
+        for name in ("PYTHONPATH", "PYTHONHOME"):
+            env.pop(name, None)
+        opened = [child.blend] if child.blend else ["--factory-startup"]
+        argv = [job.blender, "-b", *opened, "--python-exit-code", str(BLENDER_SCRIPT_FAILED)]
+        argv += ["--python", str(ENTRY_SCRIPT), "--", "render", *child.replace(blend=None).to_argv(), "--json-progress"]
+        return Command(argv, env)
+    paths = [str(ROOT), *python_paths, *filter(None, env.get("PYTHONPATH", "").split(os.pathsep))]
+    env["PYTHONPATH"] = os.pathsep.join(dict.fromkeys(paths))
+    return Command([python, "-m", "batch", "render", *child.to_argv(), "--json-progress"], env)
+
+
+class JobProcess:
+    """A started job whose stdout (events) and stderr are read by threads, so polling never blocks."""
+
+    def __init__(self, command: Command):
+        self.events: queue.Queue[events.Event] = queue.Queue()
+        self.stdout_tail: collections.deque[str] = collections.deque(maxlen=TAIL_LINES)
+        self.stderr_tail: collections.deque[str] = collections.deque(maxlen=TAIL_LINES)
+        self.last_error = ""
+        try:
+            self.popen = subprocess.Popen(
+                command.argv,
+                cwd=command.cwd,
+                env=command.env,
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE,
+                text=True,
+                encoding="utf-8",
+                errors="replace",
+                bufsize=1,
+            )
+        except OSError as exc:
+            raise BatchError(f"can't start {command.argv[0]}: {exc.strerror or exc}") from None
+        self._threads = [
+            threading.Thread(target=self._read_stdout, daemon=True),
+            threading.Thread(target=self._read, args=(self.popen.stderr, self.stderr_tail), daemon=True),
+        ]
+        for thread in self._threads:
+            thread.start()
+
+    def _read_stdout(self) -> None:
+        for line in self.popen.stdout:
+            event = events.parse(line)
+            if event is None:
+                if line.strip():
+                    self.stdout_tail.append(line.rstrip())
+                continue
+            if isinstance(event, events.Failed):
+                self.last_error = event.message
+            self.events.put(event)
+
+    @staticmethod
+    def _read(stream, tail: collections.deque) -> None:
+        for line in stream:
+            if line.strip():
+                tail.append(line.rstrip())
+
+    def drain(self) -> list[events.Event]:
+        """Events received since the last call."""
+        out = []
+        while True:
+            try:
+                out.append(self.events.get_nowait())
+            except queue.Empty:
+                return out
+
+    def poll(self) -> int | None:
+        """The exit code once the process has ended and its output has been read, else None."""
+        code = self.popen.poll()
+        if code is None or any(t.is_alive() for t in self._threads):
+            return None
+        return code
+
+    def wait(self, timeout: float | None = None) -> int:
+        code = self.popen.wait(timeout)
+        for thread in self._threads:
+            thread.join(timeout)
+        return code
+
+    def stop(self, timeout: float = 30.0) -> None:
+        """Ask the job to stop after its current pass (it saves and exits 130); kill it if it does not."""
+        if self.popen.poll() is None:
+            self.popen.send_signal(signal.SIGTERM)
+            try:
+                self.popen.wait(timeout)
+            except subprocess.TimeoutExpired:
+                self.popen.kill()
+        self.wait(timeout)
+
+    def error_message(self) -> str:
+        """The most telling line about a failure: the job's error event, else stderr's last line, else stdout's."""
+        if self.last_error:
+            return self.last_error
+        for tail in (self.stderr_tail, self.stdout_tail):
+            if tail:
+                return tail[-1]
+        return ""
+
+
+def run_job(job: RenderJob, progress, python_paths: tuple[str, ...] = ()) -> None:
+    """Run `job` in another process (its Blender binary, or this Python), relaying its progress events to
+    `progress`, and turn its exit into this process's outcome: errors raise BatchError, an interrupted job
+    raises KeyboardInterrupt (its checkpoint is kept), anything else RuntimeError."""
+    process = JobProcess(job_command(job, python_paths=python_paths))
+    try:
+        while True:
+            try:
+                code = process.popen.wait(0.1)
+            except subprocess.TimeoutExpired:
+                code = None
+            _relay(process, progress)
+            if code is not None:
+                break
+    except KeyboardInterrupt:
+        process.stop()
+        raise
+    process.wait()
+    _relay(process, progress)
+    if code == 0:
+        return
+    reason = process.error_message() or "no error message"
+    if code == 2:
+        raise BatchError(reason)
+    if code == 130 or code == -signal.SIGINT:
+        raise KeyboardInterrupt
+    who = job.blender or "the render process"
+    raise RuntimeError(f"{who} failed (exit code {code}): {reason}")
+
+
+def _relay(process: JobProcess, progress) -> None:
+    for event in process.drain():
+        if not isinstance(event, events.Failed):  # the error is reported once, by whoever handles the exit
+            progress.emit(event)

@@ -1,0 +1,135 @@
+"""Runs of the add-on: their folders, the render jobs of both sides, starting them, and old runs' clean-up.
+
+Operators call these; nothing here draws. The user's file is never modified: each run saves a copy into its
+own folder, which both sides render.
+"""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import bpy
+
+from . import checks, preferences, runner
+from ._siblings import ADDON_MODULE, batch
+from .state import RunFolder, current
+
+
+def user_dir() -> Path:
+    """Writable folder of the extension; a temporary folder when the package is not installed as one."""
+    extension_path_user = getattr(bpy.utils, "extension_path_user", None)  # 4.2+
+    try:
+        if extension_path_user is None:
+            raise ValueError
+        return Path(extension_path_user(ADDON_MODULE, create=True))
+    except ValueError:
+        path = Path(tempfile.gettempdir()) / "welch_bias"
+        path.mkdir(parents=True, exist_ok=True)
+        return path
+
+
+def new_run_dir() -> Path:
+    """A fresh folder per run; its name starts with the time so the newest sort last."""
+    stem = Path(bpy.data.filepath).stem or "untitled"
+    runs = user_dir() / "runs"
+    for attempt in range(100):
+        path = runs / f"{time.strftime('%Y%m%d-%H%M%S')}-{attempt:02d}-{stem}"
+        try:
+            path.mkdir(parents=True)
+            return path
+        except FileExistsError:
+            continue
+    raise OSError(f"cannot create a run folder in {runs}")
+
+
+def blender_binary(context) -> str:
+    """The Blender that renders: the preference, else this one (empty with the bpy module: then this Python)."""
+    prefs = preferences.get(context)
+    if prefs is not None and prefs.blender_binary:
+        return bpy.path.abspath(prefs.blender_binary)
+    return bpy.app.binary_path
+
+
+def extension_wheel_paths() -> list[str]:
+    """Where Blender installs extension wheels, for a batch tool started with this Python (bpy module)."""
+    version = f"python{sys.version_info.major}.{sys.version_info.minor}"
+    try:
+        path = bpy.utils.user_resource("EXTENSIONS", path=f".local/lib/{version}/site-packages")
+    except TypeError:  # Blender before 4.2 has no extensions
+        return []
+    return [path] if Path(path).is_dir() else []
+
+
+def alpha_of(settings) -> float:
+    """Alpha as typed: the property is single precision (0.01 reads back as 0.0099999998)."""
+    return float(f"{settings.alpha:.6g}")
+
+
+def settings_key(settings, scene) -> tuple:
+    """What must be unchanged for a stopped run to be continued."""
+    reference, test = checks.sides(settings, scene)
+    names = tuple(s.name if s is not None else "" for s in (reference, test))
+    return (
+        bpy.data.filepath, settings.mode, names, tuple(settings.enabled_overrides()), settings.passes,
+        settings.first_seed, settings.paired, settings.spp, settings.tile, settings.device,
+    )  # fmt: skip
+
+
+def sides(settings, scene, blend: str, folder: Path, resume: bool, blender: str = "") -> list[runner.Side]:
+    """The reference and test sides of a run, as render jobs on the saved copy `blend`."""
+    reference, test = checks.sides(settings, scene)
+    ref_seeds, test_seeds = runner.seed_ranges(settings.first_seed, settings.passes, settings.paired)
+    common = {
+        "blend": blend,
+        "spp": settings.spp,
+        "tile": settings.tile,
+        "resume": resume,
+        "device": settings.device,
+        "blender": blender or None,
+    }
+    job = batch.job.RenderJob
+    return [
+        runner.Side("Reference", job(out=str(folder / "reference.npz"), seeds=ref_seeds, blend_scene=reference.name,
+                                     **common)),
+        runner.Side("Test", job(out=str(folder / "test.npz"), seeds=test_seeds, blend_scene=test.name,
+                                overrides=tuple(settings.enabled_overrides()), **common)),
+    ]  # fmt: skip
+
+
+def start(context, settings, resume: bool) -> runner.Session:
+    """Save a copy of the file (the user's file is never touched) and start the reference side.
+
+    Resuming renders the copy the run started from (kept while the run can be resumed): the statistics go on
+    with the very scene they began with, whatever was edited since.
+    """
+    folder = Path(current.resumable.dir) if resume else new_run_dir()
+    blend = folder / "scene.blend"
+    if not resume:
+        bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True, check_existing=False)
+    elif not blend.is_file():
+        raise OSError(f"the stopped run's copy of the scene is gone ({blend}): start a new run")
+    run_sides = sides(settings, context.scene, str(blend), folder, resume, blender_binary(context))
+    paths = extension_wheel_paths()
+    commands = [batch.launch.job_command(side.job, python_paths=paths) for side in run_sides]
+    prefs = preferences.get(context)
+    keep = prefs is not None and prefs.keep_temporary_files
+    session = runner.Session(run_sides, commands, temporary_files=[] if keep else [str(blend)])
+    current.session, current.last_error, current.resumable = session, "", None
+    current.run = RunFolder(
+        dir=str(folder),
+        reference=run_sides[0].job.out,
+        test=run_sides[1].job.out,
+        alpha=alpha_of(settings),
+        key=settings_key(settings, context.scene),
+    )
+    session.poll()
+    return session
+
+
+def prune_old_runs(context) -> None:
+    prefs = preferences.get(context)
+    keep = prefs.runs_to_keep if prefs is not None else 10
+    runner.prune_runs(user_dir() / "runs", keep, protect=[current.run.dir] if current.run else [])

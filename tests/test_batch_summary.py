@@ -1,0 +1,135 @@
+"""What people read about a comparison (batch.summary): top tiles, notes, strict JSON, differences."""
+
+import json
+
+import numpy as np
+import pytest
+
+from batch import summary
+from tests.synthetic import make_run, scene_means, tile_sum_samples
+from welch_core import RunInfo, compare
+
+
+def test_top_tile_of_a_large_local_bias():
+    rng = np.random.default_rng(38)
+    m = scene_means()
+    shift = np.ones_like(m)
+    shift[5, 2] = 1.2  # one tile 20 % too bright
+    c = compare(
+        make_run(tile_sum_samples(rng, 20, m), range(20)), make_run(tile_sum_samples(rng, 20, m, shift), range(20, 40))
+    )
+    top = summary.top_tiles(c)[0]
+    assert (top["row"], top["col"], top["x"], top["y"], top["size"]) == (5, 2, 64, 160, 32)
+    assert top["significant"] and top["trusted"]
+    assert top["rel_diff"] == pytest.approx(0.2, abs=0.03)
+    assert 0.1 < top["ci_low"] < top["rel_diff"] < top["ci_high"] < 0.3
+
+
+def test_top_tiles_sorted_by_pvalue():
+    rng = np.random.default_rng(39)
+    m = scene_means()
+    shift = 1.0 + 0.02 * rng.uniform(size=m.shape)
+    c = compare(
+        make_run(tile_sum_samples(rng, 30, m), range(30)), make_run(tile_sum_samples(rng, 30, m, shift), range(30, 60))
+    )
+    top = summary.top_tiles(c)
+    assert len(top) == summary.TOP_TILES == 10
+    p = [t["pvalue"] for t in top]
+    assert p == sorted(p)
+    assert p[0] == np.nanmin(c.tile_pvalues)
+    for t in top:
+        assert t["channel"] in ("R", "G", "B")
+        assert t["pvalue"] == c.tile_pvalues[t["row"], t["col"]]
+
+
+def test_notes_say_why_tiles_were_left_out():
+    rng = np.random.default_rng(40)
+    m = scene_means(2, 3)
+    ref_sums, test_sums = tile_sum_samples(rng, 8, m), tile_sum_samples(rng, 8, m)
+    ref_sums[:, 0, 2, 0], test_sums[:, 0, 2, 0] = 0.3 * 1024, 0.31 * 1024  # constant, different
+    c = compare(make_run(ref_sums, range(8)), make_run(test_sums, range(8, 16)))
+    assert "1 tile-channels are constant on both sides but differ: a deterministic difference" in summary.notes(c)
+    black = np.zeros((5, 2, 3, 3))
+    c = compare(make_run(black, range(5)), make_run(black, range(5, 10)))
+    assert summary.notes(c) == [
+        "fewer than 8 passes a side: the normality of the Welch samples is unchecked",
+        "no tile can be tested: every tile-channel has too few passes, zero variance on both sides or non-finite "
+        "values (see the counts per reason)",
+    ]
+
+
+def test_notes_when_every_tile_is_untrusted_name_non_normal_samples():
+    rng = np.random.default_rng(43)
+    m = scene_means(2, 2)
+    ref = tile_sum_samples(rng, 40, m)
+    test = tile_sum_samples(rng, 40, m) + (rng.uniform(size=(40, 2, 2, 1)) < 0.03) * 5000.0
+    ref = ref + (rng.uniform(size=(40, 2, 2, 1)) < 0.03) * 5000.0
+    c = compare(make_run(ref, range(40)), make_run(test, range(40, 80)))
+    assert c.n_untrusted == c.n_valid == 4 and c.verdict == "inconclusive"
+    assert summary.notes(c) == [
+        "all 4 testable tiles have clearly non-normal Welch samples (fireflies or caustics) and are left out: use "
+        "larger tiles, more samples per pass or more passes"
+    ]
+
+
+def test_method_sentence_names_the_test_and_pvalue_method():
+    rng = np.random.default_rng(45)
+    m = scene_means(3, 3)
+    ref = make_run(tile_sum_samples(rng, 30, m), range(30))
+    test = make_run(tile_sum_samples(rng, 30, m), range(30, 60))
+    sentence = summary.method_sentence(compare(ref, test, pvalue_method="gauss"))
+    assert sentence.startswith("Welch's t-test per 32x32 tile and channel (p: gauss)")
+
+
+def test_summary_is_strict_json_for_every_verdict():
+    rng = np.random.default_rng(46)
+    m = scene_means(3, 3)
+    ref_sums = tile_sum_samples(rng, 12, m)
+    runs = {
+        "no_evidence": (ref_sums, tile_sum_samples(rng, 12, m)),
+        "biased": (ref_sums, tile_sum_samples(rng, 12, m, 1.3)),
+        "inconclusive": (np.zeros_like(ref_sums), np.zeros_like(ref_sums)),
+    }
+    for verdict, (a, b) in runs.items():
+        ref, test = make_run(a, range(12)), make_run(b, range(12, 24))
+        c = compare(ref, test)
+        assert c.verdict == verdict
+        data = json.loads(json.dumps(summary.summarize(c, ref, test), allow_nan=False))
+        assert data["verdict"] == verdict and data["alpha"] == 0.01
+        assert data["verdict_text"] == c.verdict.text
+        assert data["grid"] == {"width": 96, "height": 96, "tile": 32, "tiles_x": 3, "tiles_y": 3}
+        assert data["tiles"]["total"] == 9
+        assert sum(data["tile_channels"].values()) == 27
+        assert data["n_ref"] == data["n_test"] == 12
+        assert data["reference_selftest"]["n_ref"] == 6
+        if verdict == "inconclusive":
+            assert data["p_value"] is None and data["top_tiles"] == []
+            assert data["median_min_detectable_rel_bias"] is None
+        else:
+            assert 0.0 <= data["p_value"] <= 1.0
+            assert data["median_min_detectable_rel_bias"] > 0
+
+
+def test_differences():
+    a = RunInfo(spp=4, renderer="cycles", settings={"bounces": 8, "clamp": 0.0}, overrides=("x=1",))
+    b = RunInfo(spp=8, renderer="cycles", settings={"bounces": 4, "denoise": True}, overrides=())
+    assert summary.differences(a, b) == [
+        "spp: 4 -> 8",
+        "bounces: 8 -> 4",
+        "clamp: 0.0 -> None",
+        "denoise: None -> True",
+        "overrides: ['x=1'] -> []",
+    ]
+    assert summary.differences(a, a) == []
+    built = RunInfo(renderer="Cycles", renderer_version="3.4.1", build_hash="Unknown")
+    other = RunInfo(renderer="Cycles", renderer_version="5.0.1", build_hash="a3db93c5b259")
+    assert summary.differences(built, other) == [
+        "renderer_version: '3.4.1' -> '5.0.1'",
+        "build_hash: 'Unknown' -> 'a3db93c5b259'",
+    ]
+
+
+def test_a_failed_reference_selftest_is_a_warning():
+    fake = {"reference_selftest": {"verdict": "biased"}}
+    assert summary.warnings(fake) == ["the reference against itself (two halves) is biased: trust this with care"]
+    assert summary.warnings({"reference_selftest": None}) == []
