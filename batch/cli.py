@@ -44,8 +44,15 @@ def _alpha(text: str) -> float:
         raise argparse.ArgumentTypeError(f"must be a number in (0, 1), got {text!r}") from None
 
 
+class Parser(argparse.ArgumentParser):
+    """argparse with a usage error in one line (its usage block of a dozen lines hid the reason)."""
+
+    def error(self, message: str):
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="python -m batch",
         description="Detect bias in Monte Carlo renderers with Welch's t-test: render passes with different seeds, "
         "collect per-tile statistics, compare two runs.",

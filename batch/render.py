@@ -366,10 +366,10 @@ class PassRenderer:
         start = time.perf_counter()
         bpy.ops.render.render(scene=self.scene.name)
         middle = time.perf_counter()
-        bpy.data.images["Render Result"].save_render(self.path, scene=self.scene)
         try:
+            bpy.data.images["Render Result"].save_render(self.path, scene=self.scene)
             pixels = wc.read_exr(self.path)
-        except wc.WelchInputError as exc:
+        except (RuntimeError, wc.WelchInputError) as exc:  # a failed save raises, or leaves a short file
             raise BatchError(self._save_failure(exc)) from None
         self.render_seconds = middle - start
         self.io_seconds = time.perf_counter() - middle
@@ -384,7 +384,7 @@ class PassRenderer:
                 f"no space left in {folder} to save a pass ({free / 2**20:.1f} MiB free, a pass needs "
                 f"{self.expected_bytes / 2**20:.1f} MiB)"
             )
-        return f"Blender's saved pass does not read back: {exc}"
+        return f"Blender's saved pass does not read back: {_last_line(exc)}"
 
     def close(self) -> None:
         """Remove the temporary file."""

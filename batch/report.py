@@ -57,6 +57,10 @@ def write_report(
     return report
 
 
+def _save_figure(fig, path: Path, **options) -> None:
+    wc.formats.atomic_write(path, lambda f: fig.savefig(f, format="png", dpi=100, **options))
+
+
 def write_text(path: Path, text: str) -> None:
     """Write a text file atomically (a failure leaves the previous file and raises)."""
     wc.formats.atomic_write(path, lambda f: f.write(text.encode("utf-8")))
@@ -69,7 +73,7 @@ def _full_map(result: wc.Comparison, mode: str = "min") -> np.ndarray:
 
 def _save_rgb(path: Path, rgb: np.ndarray) -> str:
     plt = _pyplot()
-    plt.imsave(path, np.clip(rgb, 0.0, 1.0))
+    wc.formats.atomic_write(path, lambda f: plt.imsave(f, np.clip(rgb, 0.0, 1.0), format="png"))
     return path.name
 
 
@@ -92,7 +96,7 @@ def _overlay_figure(plt, path: Path, result: wc.Comparison, run: wc.TileStats, o
     ax.set_title(f"p-value map over the mean render ({result.verdict.text})")
     ax.axis("off")
     _legend(plt, fig, ax)
-    fig.savefig(path, dpi=100, bbox_inches="tight")
+    _save_figure(fig, path, bbox_inches="tight")
     plt.close(fig)
     return path.name
 
@@ -120,7 +124,7 @@ def _histogram_figure(plt, path: Path, result: wc.Comparison) -> str:
     axes[0].legend(loc="upper right", fontsize=8)
     fig.suptitle(f"p-values of {p.size} tile-channels; global p {fmt.p_is(result.p_value)}", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    _save_figure(fig, path)
     plt.close(fig)
     return path.name
 
@@ -133,7 +137,7 @@ def _channels_figure(plt, path: Path, result: wc.Comparison) -> str:
         ax.set_title(f"channel {'RGB'[ch] if channels == 3 else ch}")
         ax.axis("off")
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    _save_figure(fig, path)
     plt.close(fig)
     return path.name
 
@@ -148,7 +152,7 @@ def _effect_figure(plt, path: Path, result: wc.Comparison) -> str:
     ax.set_title("relative difference of tile means, test vs reference (%)")
     ax.axis("off")
     fig.colorbar(shown, ax=ax, fraction=0.046, pad=0.02, label="%")
-    fig.savefig(path, dpi=100, bbox_inches="tight")
+    _save_figure(fig, path, bbox_inches="tight")
     plt.close(fig)
     return path.name
 

@@ -463,3 +463,29 @@ def test_render_panel_is_for_cycles_only(scene):
 def test_user_dir_falls_back_to_a_temporary_folder():
     path = session.user_dir()
     assert path.is_dir() and Path(tempfile.gettempdir()) in path.parents
+
+
+def test_registering_imports_nothing_heavy():
+    """Registering must stay instant: no scipy, no statistics, no report code until a result is made.
+    The time is printed (measured here at about 0.03 s after `import bpy`), not asserted: the machine is shared."""
+    code = (
+        "import sys, time, json\n"
+        "import bpy\n"
+        "before = set(sys.modules)\n"
+        "start = time.perf_counter()\n"
+        "import blender_addon\n"
+        "blender_addon.register()\n"
+        "seconds = time.perf_counter() - start\n"
+        "print(json.dumps({'seconds': seconds, 'new': sorted(set(sys.modules) - before)}))\n"
+    )
+    import json
+    import subprocess
+
+    root = Path(__file__).resolve().parents[1]
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=root)
+    assert done.returncode == 0, done.stderr
+    report = json.loads(done.stdout.strip().splitlines()[-1])
+    print(f"add-on registration: {report['seconds'] * 1000:.0f} ms")
+    heavy = [m for m in report["new"] if m.split(".")[0] in {"scipy", "matplotlib", "OpenEXR"}]
+    statistics = [m for m in report["new"] if m.startswith("welch_core.") or m in {"batch.summary", "batch.report"}]
+    assert heavy == [] and statistics == []

@@ -114,7 +114,10 @@ def test_bad_arguments_exit_2(capsys):
     with pytest.raises(SystemExit) as exit_info:
         cli.main(["render", "--scene", "corner", "--seeds", "x", "--spp", "1", "--out", "a.npz"])
     assert exit_info.value.code == 2
-    assert "argument --seeds: must be A:B or S1,S2,... with integers, got 'x'" in capsys.readouterr().err
+    assert capsys.readouterr().err == (
+        "python -m batch render: error: argument --seeds: must be A:B or S1,S2,... with integers, got 'x' "
+        "(see python -m batch render --help)\n"
+    )
 
 
 # -- ingest, compare, selftest ---------------------------------------------------------------------------

@@ -267,3 +267,27 @@ def test_power_one_percent_shift_in_a_region():
         assert c.verdict == "biased", seed
         rows, cols = np.nonzero(c.significant)
         assert len(rows) and set(rows) <= {2, 3} and set(cols) <= {5, 6}, seed
+
+
+@pytest.mark.parametrize("paired", [False, True])
+def test_memory_stays_bounded_on_fine_grids(paired, monkeypatch):
+    """Per-pixel tests of a large image: compare works block by block, so its temporaries are a fraction of the
+    runs' own per-pass sums (a whole-grid computation took 6.9 GB at 1024², 1-pixel tiles, 32 passes a side).
+    The block size is made small here so that a small grid shows it."""
+    import tracemalloc
+
+    import welch_core.tiles
+
+    monkeypatch.setattr(welch_core.tiles, "BLOCK_BYTES", 1 << 20)
+    rng = np.random.default_rng(50)
+    n, ty, tx = 48, 128, 128  # 1-pixel tiles of a 128² image
+    ref = make_run(rng.gamma(2.0, 1.0, size=(n, ty, tx, 3)), range(n), tile=1)
+    test = make_run(rng.gamma(2.0, 1.0, size=(n, ty, tx, 3)), range(n) if paired else range(n, 2 * n), tile=1)
+    sums_bytes = ref.sums.nbytes
+    tracemalloc.start()
+    result = compare(ref, test)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert result.test == ("paired" if paired else "welch")
+    # The paired test holds the differences (one run's size); everything else is per-tile or per-block.
+    assert peak < (1.6 if paired else 0.6) * sums_bytes, f"peak {peak / 2**20:.0f} MiB for {sums_bytes / 2**20:.0f} MiB"

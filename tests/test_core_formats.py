@@ -364,3 +364,10 @@ def test_json_of_the_run_info_is_strict(tmp_path):
     with pytest.raises(ValueError, match="Out of range float values are not JSON compliant"):
         save_stats(tmp_path / "nan.npz", run)
     assert os.listdir(tmp_path) == []
+
+
+def test_metadata_with_nan_is_refused(tmp_path):
+    arrays = good_arrays(make_run(), tmp_path)
+    meta = str(arrays["meta"]).replace('"settings": {}', '"settings": {"cycles.film_exposure": NaN}')
+    assert "NaN" in meta
+    expect_damaged(tmp_path / "nan.npz", arrays | {"meta": np.array(meta)}, "its metadata is not JSON (NaN is not")

@@ -13,6 +13,7 @@ from welch_core import (
     PVALUE_METHODS,
     Reason,
     WelchInputError,
+    paired_from_stats,
     paired_ttest,
     pvalue_as_erf,
     pvalue_exact,
@@ -326,3 +327,14 @@ def test_negative_variance_rejected():
     msg = "variances must be >= 0, got a negative value"
     with pytest.raises(WelchInputError, match=re.escape(msg)):
         welch_from_stats(0.0, -1e-12, 5, 0.0, 1.0, 5)
+
+
+def test_paired_summary_path_equals_raw_path():
+    rng = np.random.default_rng(77)
+    a = rng.normal(5.0, 1.0, size=(12, 4, 3))
+    b = a + rng.normal(0.1, 0.2, size=a.shape)
+    raw = paired_ttest(a, b, axis=0)
+    d = b - a
+    summary = paired_from_stats(d.mean(axis=0), d.var(axis=0, ddof=1), 12)
+    for name in ("statistic", "df", "pvalue", "mean_difference", "standard_error"):
+        np.testing.assert_allclose(getattr(summary, name), getattr(raw, name), rtol=1e-12)

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import json
 import os
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -247,3 +250,34 @@ def test_renderer_info(factory):
         "sampling_pattern": "TABULATED_SOBOL",
     }
     assert json.dumps(info)
+
+
+def test_a_full_temporary_folder_is_named_as_such(factory, tmp_path, monkeypatch):
+    """Blender only prints a failed save: the pass then does not read back, and the reason must be the full
+    folder, not an unreadable EXR."""
+    scene = render.open_scene(None, "corner")
+    render.configure_unbiased(scene, resolution=(16, 16))
+    with render.PassRenderer(scene, temp_dir=str(tmp_path)) as renderer:
+        monkeypatch.setattr(render, "_free_bytes", lambda _folder: 100)
+        Path(renderer.path).unlink()
+        Path(renderer.path).mkdir()  # Blender can't save over a folder: its save fails as on a full disk
+        with pytest.raises(BatchError) as info:
+            renderer.render(0)
+        Path(renderer.path).rmdir()
+    assert str(info.value) == f"no space left in {tmp_path} to save a pass (0.0 MiB free, a pass needs 0.0 MiB)"
+
+
+def test_temporary_passes_of_killed_renders_are_removed(factory, tmp_path):
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    stale = tmp_path / f"welch-pass-{dead.pid}-abc.exr"
+    alive = tmp_path / f"welch-pass-{os.getppid()}-abc.exr"  # a running process's pass stays
+    other = tmp_path / "unrelated.exr"
+    for path in (stale, alive, other):
+        path.write_bytes(b"x")
+    scene = render.open_scene(None, "corner")
+    render.configure_unbiased(scene, resolution=(16, 16))
+    with render.PassRenderer(scene, temp_dir=str(tmp_path)) as renderer:
+        assert not stale.exists() and alive.exists() and other.exists()
+        assert os.path.basename(renderer.path).startswith(f"welch-pass-{os.getpid()}-")
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([alive.name, other.name])

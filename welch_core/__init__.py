@@ -52,6 +52,7 @@ _EXPORTS = {
     "PVALUE_METHODS": "ttest",
     "Reason": "ttest",
     "TTestResult": "ttest",
+    "paired_from_stats": "ttest",
     "paired_ttest": "ttest",
     "pvalue_as_erf": "ttest",
     "pvalue_exact": "ttest",

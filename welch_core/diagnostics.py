@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .tiles import TileStats
+from .tiles import TileStats, tile_row_blocks
 
 __all__ = ["MIN_PASSES_FOR_NORMALITY", "NORMALITY_ALPHA", "SHAPE_LIMIT", "Normality", "normality", "split_halves"]
 
@@ -55,11 +55,18 @@ def normality(run: TileStats) -> Normality:
     if run.n < 3:
         nan = np.full(shape, np.nan)
         return Normality(nan, nan, nan, run.n, checked=False)
+    m2, m3, m4 = np.empty(shape), np.empty(shape), np.empty(shape)
     with np.errstate(invalid="ignore", divide="ignore"):  # constant and non-finite tiles have no shape: NaN
-        shifted = sums - sums[0]  # exactly zero for a constant tile, whose mean may be an ulp off
-        centred = shifted - shifted.mean(axis=0)
-        squared = centred * centred  # products, not **3 and **4, which numpy computes with pow(): 10x slower
-        m2, m3, m4 = squared.mean(axis=0), (squared * centred).mean(axis=0), (squared * squared).mean(axis=0)
+        for rows in tile_row_blocks(sums):  # block by block: the temporaries stay small for any grid
+            block = sums[:, rows]
+            shifted = block - block[0]  # exactly zero for a constant tile, whose mean may be an ulp off
+            centred = shifted - shifted.mean(axis=0)
+            squared = centred * centred  # products, not **3 and **4, which numpy computes with pow(): 10x slower
+            m2[rows], m3[rows], m4[rows] = (
+                squared.mean(axis=0),
+                (squared * centred).mean(axis=0),
+                (squared * squared).mean(axis=0),
+            )
         g1 = m3 / m2**1.5  # sample skewness (scipy.stats.skew with bias=True)
         g2 = m4 / m2**2 - 3.0  # sample excess kurtosis (scipy.stats.kurtosis with bias=True)
         jb = run.n / 6.0 * (g1**2 + g2**2 / 4.0)  # Jarque & Bera (1980)

@@ -237,7 +237,7 @@ class _Reader:
     def meta(self) -> dict:
         text = self.scalar("meta", "U")
         try:
-            meta = json.loads(text)
+            meta = json.loads(text, parse_constant=_no_constants)
         except ValueError as exc:
             raise self.fail(f"its metadata is not JSON ({exc})") from None
         if not isinstance(meta, dict):
@@ -289,6 +289,11 @@ class _Reader:
         checked = np.isfinite(expected_mean) & np.isfinite(expected_m2)
         if not (mean_ok | ~checked).all() or not (m2_ok | ~checked).all():
             raise self.fail("its stored means or second moments contradict its per-pass sums")
+
+
+def _no_constants(name: str):
+    """JSON has no NaN or Infinity; Python's reader accepts them, and a report written from them would not be JSON."""
+    raise ValueError(f"{name} is not a JSON number")
 
 
 _KIND_WORDS = {"iu": "integers", "f": "floats", "U": "a string", "iufcUSb": "a number"}

@@ -25,11 +25,15 @@ import numpy.typing as npt
 
 from .errors import GridMismatchError, RunMismatchError, WelchInputError, check_int
 
-__all__ = ["MAX_IMAGE_SIDE", "MAX_SPP", "RunInfo", "TileStats", "tile_sums"]
+__all__ = ["MAX_IMAGE_SIDE", "MAX_SPP", "RunInfo", "TileStats", "tile_row_blocks", "tile_sums"]
 
 #: Cycles' largest render side (it clamps larger resolutions to this) and largest sample count (2**24).
 MAX_IMAGE_SIDE = 65536
 MAX_SPP = 2**24
+
+#: Bytes of per-pass sums a computation over all passes takes at a time: work on the whole grid at once would
+#: need several copies of every pass's sums (6.9 GB for 1-pixel tiles of a 1024² image at 32 passes a side).
+BLOCK_BYTES = 1 << 26
 
 #: Fields of RunInfo that say which configuration made the passes: runs merge (and resume) only when all agree.
 IDENTITY_FIELDS = (
@@ -118,6 +122,17 @@ def tile_sums(image: npt.ArrayLike, tile: int, channels: int = 3) -> np.ndarray:
     return row_sums.reshape(ty, tx, tile, channels).sum(axis=2, dtype=np.float64)
 
 
+def tile_row_blocks(sums: np.ndarray, budget: int | None = None):
+    """Slices of tile rows (axis 1 of per-pass sums) such that each block of all passes fits in `budget` bytes
+    (default `BLOCK_BYTES`, at least one row): computations over the passes go block by block and their
+    temporaries stay small."""
+    budget = budget or BLOCK_BYTES
+    n, rows = sums.shape[0], sums.shape[1]
+    row_bytes = max(n * int(np.prod(sums.shape[2:], dtype=np.int64)) * 8, 1)
+    step = max(1, budget // row_bytes)
+    return [slice(start, min(start + step, rows)) for start in range(0, rows, step)] or [slice(0, 0)]
+
+
 def _check_image(image, channels: int) -> np.ndarray:
     if not isinstance(image, np.ndarray):
         raise WelchInputError(f"`image` must be a numpy array, got {type(image).__name__}")
@@ -200,7 +215,8 @@ class TileStats:
         pixel_sum: np.ndarray | None = None,
     ) -> TileStats:
         """Statistics built from per-pass tile sums of shape (n, tiles_y, tiles_x, channels): the constructor for
-        loaders and derived runs.
+        loaders and derived runs. A C-contiguous float64 array is used as it is (not copied): don't change it
+        afterwards.
 
         `pixel_sum`, if given, is the per-pixel sum over the passes (H×W×channels), from which the mean image is
         shown.
@@ -291,16 +307,16 @@ class TileStats:
     def _derived_moments(self) -> tuple[np.ndarray, np.ndarray]:
         if self._moments is None or self._moments[0] != self._count:
             sums = self.sums
-            if self._count == 0:
-                mean, m2 = np.zeros(self.grid_shape), np.zeros(self.grid_shape)
-            else:
+            mean, m2 = np.zeros(self.grid_shape), np.zeros(self.grid_shape)
+            for rows in tile_row_blocks(sums) if self._count else ():
                 # Two-pass moments shifted by the first pass: a constant tile gets exactly its value and m2 = 0
                 # (an unshifted mean can be an ulp off), and no sum-of-squares cancellation at a large offset.
+                block = sums[:, rows]
                 with np.errstate(invalid="ignore"):
-                    shifted = sums - sums[0]
+                    shifted = block - block[0]
                     offset = shifted.mean(axis=0)
-                    mean = sums[0] + offset
-                    m2 = ((shifted - offset) ** 2).sum(axis=0)
+                    mean[rows] = block[0] + offset
+                    m2[rows] = ((shifted - offset) ** 2).sum(axis=0)
             mean.flags.writeable = m2.flags.writeable = False
             self._moments = (self._count, mean, m2)
         return self._moments[1], self._moments[2]
@@ -377,6 +393,10 @@ class TileStats:
 
     def _append(self, sums: np.ndarray, seeds: list[int]) -> None:
         needed = self._count + len(sums)
+        if self._count == 0 and sums.dtype == np.float64 and sums.flags.c_contiguous and len(sums) > 1:
+            self._buffer, self._count = sums, needed  # adopt a whole run's sums: no second copy in memory
+            self.seeds.extend(seeds)
+            return
         if needed > len(self._buffer):
             grown = np.empty((max(needed, 2 * len(self._buffer), 8), *self.grid_shape))
             grown[: self._count] = self._buffer[: self._count]

@@ -19,6 +19,7 @@ __all__ = [
     "PVALUE_METHODS",
     "Reason",
     "TTestResult",
+    "paired_from_stats",
     "paired_ttest",
     "pvalue_as_erf",
     "pvalue_exact",
@@ -172,14 +173,21 @@ def paired_ttest(a: npt.ArrayLike, b: npt.ArrayLike, axis: int = 0, *, pvalue_me
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     if a.shape != b.shape:
         raise WelchInputError(f"paired samples must have the same shape, got {a.shape} and {b.shape}")
-    d = b - a
-    mean, var, n = _summary(d, axis)
+    return paired_from_stats(*_summary(b - a, axis), pvalue_method=pvalue_method)
+
+
+def paired_from_stats(
+    mean_diff: npt.ArrayLike, var_diff: npt.ArrayLike, n: npt.ArrayLike, *, pvalue_method: str = "exact"
+) -> TTestResult:
+    """The paired t-test from the mean, unbiased variance and count of the per-pass differences (test minus
+    reference), elementwise; `paired_ttest` is this on raw samples."""
+    mean, var, n = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (mean_diff, var_diff, n)))
     with np.errstate(divide="ignore", invalid="ignore"):
         se = np.sqrt(var / n)
         t = -mean / se  # mean(a - b) / se: the sign convention of welch_ttest and scipy's ttest_rel
-        df = np.broadcast_to(n - 1.0, t.shape)
+        df = n - 1.0
     zero = np.zeros_like(mean)
-    return _finish(t, df, mean, se, np.broadcast_to(n < 2, t.shape), (zero, zero, mean, var), pvalue_method)
+    return _finish(t, df, mean, se, n < 2, (zero, zero, mean, var), pvalue_method)
 
 
 def _summary(x: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
