@@ -164,5 +164,6 @@ class StopRequest:
 
     def __exit__(self, *exc) -> bool:
         for signum, old in self._old.items():
-            signal.signal(signum, old)
+            if old is not None:  # None: a handler installed from C (Blender's), which Python can't put back
+                signal.signal(signum, old)
         return False

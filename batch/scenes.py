@@ -30,6 +30,7 @@ BOX = 2.0  # edge length of the box, metres
 LIGHT_SIZE = 0.5
 CYCLES_MAX_BOUNCES = 1024  # the properties' hard maximum
 LIGHT_ENERGY = 60.0  # watts; the mean pixel of ``corner`` comes out near 0.17
+MESH_LIGHT_STRENGTH = 15.0  # the emitter of ``corner_mesh_light``; the mean pixel comes out near 0.11
 
 
 def _new_scene(name: str) -> bpy.types.Scene:
@@ -89,6 +90,19 @@ def _diffuse(name: str, grey: float) -> bpy.types.Material:
     return material
 
 
+def _emission(name: str, strength: float) -> bpy.types.Material:
+    """A white emitter; its strength is the input 'Strength' of the node 'Emission'."""
+    material = bpy.data.materials.new(name)
+    nodes = node_tree(material).nodes
+    nodes.clear()
+    emission = nodes.new("ShaderNodeEmission")
+    emission.name = "Emission"
+    emission.inputs["Strength"].default_value = strength
+    out = nodes.new("ShaderNodeOutputMaterial")
+    material.node_tree.links.new(emission.outputs["Emission"], out.inputs["Surface"])
+    return material
+
+
 def _link(scene: bpy.types.Scene, name: str, data, material=None) -> bpy.types.Object:
     obj = bpy.data.objects.new(name, data)
     if material is not None:
@@ -118,8 +132,11 @@ def _sphere(scene, name: str, center, radius: float, material) -> bpy.types.Obje
     return obj
 
 
-def _corner(name: str, floor: bpy.types.Material | None = None) -> bpy.types.Scene:
-    """Floor (z=0), left wall (x=0) and back wall (y=BOX) of a grey box, a square light and a camera."""
+def _corner(name: str, floor: bpy.types.Material | None = None, mesh_light: bool = False) -> bpy.types.Scene:
+    """Floor (z=0), left wall (x=0) and back wall (y=BOX) of a grey box, a square light and a camera.
+
+    The light is an area light, or with `mesh_light` an emissive quad of the same size and place.
+    """
     scene = _new_scene(name)
     walls = _diffuse("Walls", WALL_GREY)
     b = BOX
@@ -127,13 +144,18 @@ def _corner(name: str, floor: bpy.types.Material | None = None) -> bpy.types.Sce
     _quad(scene, "LeftWall", [(0, 0, 0), (0, b, 0), (0, b, b), (0, 0, b)], walls)
     _quad(scene, "BackWall", [(0, b, 0), (b, b, 0), (b, b, b), (0, b, b)], walls)
 
-    light = bpy.data.lights.new("Light", "AREA")
-    light.shape = "SQUARE"
-    light.size = LIGHT_SIZE
-    light.energy = LIGHT_ENERGY
-    light.color = (1.0, 1.0, 1.0)
-    # An area light faces -Z: it hangs under the (absent) ceiling and shines down into the corner.
-    _link(scene, "Light", light).location = (0.8 * b / 2, 1.2 * b / 2, 0.9 * b)
+    center = (0.8 * b / 2, 1.2 * b / 2, 0.9 * b)  # under the (absent) ceiling, shining down into the corner
+    if mesh_light:
+        h = LIGHT_SIZE / 2
+        corners = [(center[0] + dx, center[1] + dy, center[2]) for dx, dy in ((-h, -h), (-h, h), (h, h), (h, -h))]
+        _quad(scene, "Light", corners, _emission("LightEmission", MESH_LIGHT_STRENGTH))  # faces -Z
+    else:
+        light = bpy.data.lights.new("Light", "AREA")
+        light.shape = "SQUARE"
+        light.size = LIGHT_SIZE
+        light.energy = LIGHT_ENERGY
+        light.color = (1.0, 1.0, 1.0)
+        _link(scene, "Light", light).location = center  # an area light faces -Z
 
     camera = bpy.data.cameras.new("Camera")
     camera.lens = 28.0
@@ -149,6 +171,10 @@ def _corner(name: str, floor: bpy.types.Material | None = None) -> bpy.types.Sce
 
 def _corner_scene() -> bpy.types.Scene:
     return _corner("corner")
+
+
+def _corner_mesh_light_scene() -> bpy.types.Scene:
+    return _corner("corner_mesh_light", mesh_light=True)
 
 
 def _corner_glass_scene() -> bpy.types.Scene:
@@ -193,6 +219,7 @@ def _glossy_scene() -> bpy.types.Scene:
 SCENES: dict[str, Callable[[], bpy.types.Scene]] = {
     "corner": _corner_scene,
     "corner_glass": _corner_glass_scene,
+    "corner_mesh_light": _corner_mesh_light_scene,
     "glossy": _glossy_scene,
 }
 
