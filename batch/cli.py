@@ -37,6 +37,18 @@ DEFAULT_ALPHA = 0.01
 INPUT_ERRORS = (BatchError, wc.WelchInputError, OSError)
 
 
+def tolerance_arg(text: str) -> float:
+    """argparse type: a percentage such as ``0.5%``, returned as a fraction (0.005)."""
+    number = text.strip().removesuffix("%")
+    try:
+        value = float(number) / 100.0
+    except ValueError:
+        value = float("nan")
+    if not text.strip().endswith("%") or not 0.0 < value < 10.0:
+        raise argparse.ArgumentTypeError(f"must be a percentage such as 0.5%, got {text!r}")
+    return value
+
+
 def _alpha(text: str) -> float:
     try:
         return wc.errors.check_alpha(float(text))
@@ -110,6 +122,19 @@ def build_parser() -> argparse.ArgumentParser:
             help="exact Student t (default); gauss/as_erf: the paper's approximations where nu >= 20",
         )
         c.add_argument("--out", required=True, metavar="REPORT_DIR", help="folder for the report (created if missing)")
+        c.add_argument(
+            "--tolerance",
+            type=tolerance_arg,
+            metavar="PERCENT",
+            help="e.g. 0.5%%: the verdict is `equivalent` when every tile's difference is bounded within it",
+        )
+        c.add_argument(
+            "--tile",
+            type=jobs.positive_int,
+            metavar="N",
+            help="test only this tile size (a multiple of the stored one); default: the stored size and every "
+            "multiple 2x, 4x, ... that fits the image",
+        )
         if name == "compare":
             kind = c.add_mutually_exclusive_group()
             kind.add_argument(
@@ -255,7 +280,7 @@ def _content_seed(path: str) -> int:
 
 def cmd_compare(args) -> int:
     ref, test = wc.load_stats(args.ref), wc.load_stats(args.test)
-    result = wc.compare(ref, test, args.alpha, args.kind, args.pvalue_method)
+    result = wc.compare(ref, test, args.alpha, args.kind, args.pvalue_method, args.tile, args.tolerance)
     return _write_and_print(args, ref, test, result, args.ref, args.test)
 
 
@@ -264,7 +289,7 @@ def cmd_selftest(args) -> int:
     if run.n < 4:
         raise BatchError(f"selftest needs at least 4 passes to split into halves, {args.run} has {run.n}")
     first, second = wc.split_halves(run)
-    result = wc.compare(first, second, args.alpha, "welch", args.pvalue_method)
+    result = wc.compare(first, second, args.alpha, "welch", args.pvalue_method, args.tile, args.tolerance)
     name = os.path.basename(args.run)
     return _write_and_print(args, first, second, result, f"{name} (even passes)", f"{name} (odd passes)")
 

@@ -67,6 +67,9 @@ def summarize(
         },
         "tile_channels": c.reason_counts,
         "median_min_detectable_rel_bias": _num(np.median(c.effect.min_detectable[finite])) if finite.any() else None,
+        "scales": [scale_summary(scale) for scale in c.scales],
+        "equivalence": equivalence_summary(c.equivalence),
+        "uncovered_tiles": int(c.uncovered.sum()) if c.uncovered is not None else 0,
         "top_tiles": top_tiles(c),
         "notes": notes(c),
         "reference": {"name": ref_name, "n": ref.n, "seeds": format_seeds(ref.seeds), "info": ref.info.to_json()},
@@ -81,9 +84,61 @@ def summarize(
 
 def method_sentence(c: wc.Comparison) -> str:
     name = "paired t-test on per-pass differences" if c.test == "paired" else "Welch's t-test"
+    sizes = ", ".join(str(scale.tile) for scale in c.scales or (c,))
+    text = (
+        f"{name} per tile and channel (p: {c.pvalue_method}) at tile sizes {sizes}; channels combined by "
+        "Bonferroni; the tiles of a scale by Holm and a one-sided Kolmogorov-Smirnov test of uniformity, "
+        "Bonferroni-combined; the scales by Bonferroni"
+    )
+    if c.equivalence is not None:
+        text += (
+            f"; equivalence: simultaneous {1 - c.alpha:.0%} intervals of the relative difference (Bonferroni over "
+            f"tile-channels and scales) inside ±{fmt.percent(c.equivalence.tolerance).lstrip('+')}"
+        )
+    return text
+
+
+def scale_summary(scale: wc.Comparison) -> dict[str, Any]:
+    """One tile scale: its size, global p-value and tile counts."""
+    return {
+        "tile": scale.tile,
+        "tiles": int(scale.tile_pvalues.size),
+        "p_value": _num(scale.p_value),
+        "used": int(scale.used.sum()),
+        "untrusted": scale.n_untrusted,
+        "significant": int(scale.significant.sum()),
+    }
+
+
+def equivalence_summary(eq: wc.Equivalence | None) -> dict[str, Any] | None:
+    """The tolerance, the finest tile size at which every tile is bounded within it, and the bounds per scale."""
+    if eq is None:
+        return None
+    best = eq.best
+    return {
+        "tolerance": eq.tolerance,
+        "equivalent": eq.equivalent,
+        "tile": eq.tile,
+        "ruled_out": {str(tile): _num(bound) for tile, bound in eq.ruled_out.items()},
+        "best": None if best is None else {"tile": best[0], "ruled_out": best[1]},
+    }
+
+
+def equivalence_sentence(summary: dict[str, Any]) -> str | None:
+    """'... within ±1.00 % in every 64x64 tile' or '... a bias beyond 1.80 % is ruled out in every 128x128 tile'."""
+    eq = summary.get("equivalence")
+    if eq is None:
+        return None
+    tolerance = fmt.percent(eq["tolerance"]).lstrip("+")
+    if eq["equivalent"]:
+        tile = eq["tile"]
+        return f"the test converges to the reference within ±{tolerance} in every {tile}x{tile} tile"
+    if eq["best"] is None:
+        return f"not shown within ±{tolerance}: no tile size bounds the difference in every tile"
+    tile, bound = eq["best"]["tile"], eq["best"]["ruled_out"]
     return (
-        f"{name} per {c.tile}x{c.tile} tile and channel (p: {c.pvalue_method}); channels combined by "
-        "Bonferroni; tiles by Holm and a one-sided Kolmogorov-Smirnov test of uniformity, Bonferroni-combined"
+        f"not shown within ±{tolerance}: a bias beyond {fmt.percent(bound).lstrip('+')} is ruled out in every "
+        f"{tile}x{tile} tile"
     )
 
 
@@ -138,15 +193,20 @@ def notes(c: wc.Comparison) -> list[str]:
         )
     elif untrusted == valid:
         out.append(
-            f"all {valid} testable tiles have clearly non-normal Welch samples (fireflies or caustics) and are left "
-            "out: use larger tiles, more samples per pass or more passes"
+            f"all {valid} testable {c.tile}x{c.tile} tiles have clearly non-normal Welch samples "
+            "(fireflies or caustics)"
         )
     elif untrusted:
+        out.append(f"{untrusted} of {valid} {c.tile}x{c.tile} tiles have clearly non-normal Welch samples")
+    if c.uncovered is not None and c.uncovered.any():
         out.append(
-            f"{untrusted} of {valid} tiles have clearly non-normal Welch samples and are left out of the verdict"
+            f"{int(c.uncovered.sum())} {c.tile}x{c.tile} tiles can be tested at no tile size (their Welch samples "
+            "stay non-normal): the verdict covers the rest of the image"
         )
         if c.verdict == wc.Verdict.INCONCLUSIVE:
-            out.append("too much of the image has non-normal Welch samples: use larger tiles or more spp per pass")
+            out.append("too much of the image can't be tested: render more samples per pass or more passes")
+    elif untrusted and len(c.scales) > 1:
+        out.append("their regions are tested at a larger tile size")
     return out
 
 
@@ -209,6 +269,9 @@ def console_lines(summary: dict[str, Any]) -> list[str]:
         lines.append(
             f"a tile with a bias of {detectable:.1%} (median over tiles) would have been found with 80 % power"
         )
+    equivalence = equivalence_sentence(summary)
+    if equivalence is not None:
+        lines.append(equivalence)
     lines += [f"note: {note}" for note in summary["notes"]]
     lines += [f"warning: {warning}" for warning in summary["warnings"]]
     return lines

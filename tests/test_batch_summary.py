@@ -67,8 +67,10 @@ def test_notes_when_every_tile_is_untrusted_name_non_normal_samples():
     c = compare(make_run(ref, range(40)), make_run(test, range(40, 80)))
     assert c.n_untrusted == c.n_valid == 4 and c.verdict == "inconclusive"
     assert summary.notes(c) == [
-        "all 4 testable tiles have clearly non-normal Welch samples (fireflies or caustics) and are left out: use "
-        "larger tiles, more samples per pass or more passes"
+        "all 4 testable 32x32 tiles have clearly non-normal Welch samples (fireflies or caustics)",
+        "4 32x32 tiles can be tested at no tile size (their Welch samples stay non-normal): the verdict covers the "
+        "rest of the image",
+        "too much of the image can't be tested: render more samples per pass or more passes",
     ]
 
 
@@ -78,7 +80,10 @@ def test_method_sentence_names_the_test_and_pvalue_method():
     ref = make_run(tile_sum_samples(rng, 30, m), range(30))
     test = make_run(tile_sum_samples(rng, 30, m), range(30, 60))
     sentence = summary.method_sentence(compare(ref, test, pvalue_method="gauss"))
-    assert sentence.startswith("Welch's t-test per 32x32 tile and channel (p: gauss)")
+    assert sentence.startswith("Welch's t-test per tile and channel (p: gauss) at tile sizes 32, 64; ")
+    assert sentence.endswith("the scales by Bonferroni")
+    with_tolerance = summary.method_sentence(compare(ref, test, tolerance=0.01))
+    assert with_tolerance.endswith("(Bonferroni over tile-channels and scales) inside ±1.00 %")
 
 
 def test_summary_is_strict_json_for_every_verdict():

@@ -50,7 +50,7 @@ def test_every_builtin_scene_renders(factory, name):
 
 
 def test_build_scene_rejects_unknown_names(factory):
-    with pytest.raises(BatchError, match="unknown built-in scene 'box'; choose from corner, corner_glass, glossy"):
+    with pytest.raises(BatchError, match=f"unknown built-in scene 'box'; choose from {', '.join(SCENES)}$"):
         build_scene("box")
 
 
@@ -63,10 +63,10 @@ def test_open_scene_errors(factory, tmp_path):
     corrupt.write_bytes(b"not a blend file" * 64)
     cases = [
         ((str(missing),), f"{missing}: no such file"),
-        ((None, "box"), "unknown built-in scene 'box'; choose from corner, corner_glass, glossy"),
+        ((None, "box"), f"unknown built-in scene 'box'; choose from {', '.join(SCENES)}"),
         ((str(missing), "corner"), f"give a .blend file or a built-in scene, not both ({missing}, 'corner')"),
         ((None, "corner", "Other"), "a built-in scene has no scene 'Other' to choose"),
-        ((None,), "no scene to render: give a .blend file or a built-in scene (corner, corner_glass, glossy)"),
+        ((None,), f"no scene to render: give a .blend file or a built-in scene ({', '.join(SCENES)})"),
     ]
     for args, message in cases:
         with pytest.raises(render.RenderSetupError) as info:

@@ -1,30 +1,51 @@
-"""Compare two runs: the per-tile test, the diagnostics, the effect sizes and one verdict.
+"""Compare two runs: the per-tile test at every tile scale, the diagnostics, the effect sizes and one verdict.
 
-Verdicts: ``biased`` (the global p-value is at most alpha, or a tile differs deterministically), ``no_evidence``,
-or ``inconclusive`` (nothing testable, or too many tiles whose Welch samples are clearly not normal for the
-remaining ones to speak for the image).
+The stored tile size is the finest scale; coarser scales (2x, 4x, ... the stored tile, up to the image) come from
+the stored per-pass sums without re-rendering. Each scale is tested on its own (tiles by Holm and a one-sided KS
+test of uniformity, see `multitest`); the scales are combined by Bonferroni: the global p-value is the number of
+scales times the smallest scale p-value. Bonferroni holds however strongly the scales depend on each other (a
+coarse tile is the sum of finer ones), and with log2 of the image size scales it costs little. A small tile finds
+a local bias, a large one a weak bias spread over the image; nobody has to know in advance which it is.
+
+Verdicts: ``biased`` (the global p-value is at most alpha, or a tile differs deterministically); with a
+tolerance, ``equivalent`` when at some scale every tested tile's simultaneous (1 - alpha) confidence interval of
+the relative difference lies inside +-tolerance (two one-sided tests, Bonferroni over the tile-channels and the
+scales); ``inconclusive`` when nothing is testable or too much of the image is testable at no scale (Welch
+samples clearly not normal); else ``no_evidence``.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
 from .diagnostics import MIN_PASSES_FOR_NORMALITY, normality
-from .effect import Effect, effect_sizes
+from .effect import Effect, effect_sizes, relative_interval
 from .errors import SeedOverlapError, WelchInputError, check_alpha
 from .multitest import GlobalTest, combine_channels, global_test
 from .tiles import TileStats
 from .ttest import Reason, TTestResult, paired_from_stats, welch_from_stats
 from .verdict import Verdict
 
-__all__ = ["MAX_UNTRUSTED_SHARE", "TESTS", "Comparison", "compare", "seed_relation"]
+__all__ = [
+    "MAX_UNTRUSTED_SHARE",
+    "TESTS",
+    "Comparison",
+    "Equivalence",
+    "TileTest",
+    "compare",
+    "scale_factors",
+    "seed_relation",
+    "test_tiles",
+]
 
 TESTS = ("auto", "welch", "paired")
 
-#: Above this share of untrusted tiles a run without significant trusted tiles is `inconclusive`, not
-#: `no_evidence`: the untested part of the image is too large to speak for the whole.
+#: Above this share of the image untestable at every scale (the Welch samples of its tiles clearly not normal),
+#: a run without significant tiles is `inconclusive`, not `no_evidence`: the untested part of the image is too
+#: large to speak for the whole.
 MAX_UNTRUSTED_SHARE = 0.25
 
 
@@ -81,6 +102,11 @@ class Comparison:
     width: int
     height: int
     tile: int
+    #: every scale tested, finest (this one's own) first; empty for the single-scale entries themselves
+    scales: tuple[Comparison, ...] = ()
+    #: base tiles that could be tested at no scale (all-constant tiles excluded); None for a single scale
+    uncovered: np.ndarray | None = None
+    equivalence: Equivalence | None = None
 
     @property
     def pvalues(self) -> np.ndarray:
@@ -125,31 +151,77 @@ class Comparison:
         """Tile-channels per reason (valid included)."""
         return {r.label: int((self.reasons == r).sum()) for r in Reason}
 
+    def region_scales(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per tile of this (the finest) grid: the tile size of the finest scale whose tile covering it is tested
+        (0 where none is), and that tile's p-values per channel (NaN where none). What the map shows."""
+        ty, tx = self.tile_pvalues.shape
+        sizes = np.zeros((ty, tx), dtype=int)
+        pvalues = np.full((ty, tx, self.pvalues.shape[-1]), np.nan)
+        for scale in reversed(self.scales or (self,)):  # coarsest first: finer scales overwrite
+            f = scale.tile // self.tile
+            rows, cols = np.arange(ty) // f, np.arange(tx) // f
+            inside = (rows[:, None] < scale.used.shape[0]) & (cols[None, :] < scale.used.shape[1])
+            r, c = np.minimum(rows, scale.used.shape[0] - 1), np.minimum(cols, scale.used.shape[1] - 1)
+            used = inside & scale.used[r[:, None], c[None, :]]
+            sizes[used] = scale.tile
+            pvalues[used] = scale.pvalues[r[:, None], c[None, :]][used]
+        return sizes, pvalues
 
-def compare(
-    ref: TileStats,
-    test: TileStats,
-    alpha: float = 0.01,
-    test_kind: str = "auto",
-    pvalue_method: str = "exact",
-) -> Comparison:
-    """Test whether `test` converges to the same image as `ref`, per tile and as a whole.
 
-    Parameters
-    ----------
-    ref, test : TileStats
-        The two runs, on the same grid.
-    alpha : float
-        The false-positive rate of a `biased` verdict.
-    test_kind : {"auto", "welch", "paired"}
-        "auto" picks the paired test when both runs used the same seeds and Welch's test when they are disjoint.
-    pvalue_method : {"exact", "gauss", "as_erf"}
-        See `welch_core.ttest.two_sided_pvalue`.
-    """
-    alpha = check_alpha(alpha)
-    ref.same_grid(test)
-    relation = seed_relation(ref.seeds, test.seeds)
-    kind = _choose_test(test_kind, relation, len(set(ref.seeds) & set(test.seeds)))
+@dataclass(frozen=True)
+class Equivalence:
+    """Where the relative difference is bounded: per scale, the largest |bias| its simultaneous intervals rule
+    out in every tested tile (inf where some tile of the scale can't be bounded), and the finest scale at which
+    that bound is within the tolerance (None: at none)."""
+
+    tolerance: float
+    ruled_out: dict[int, float]  # tile size -> the largest relative bias not ruled out, max over tile-channels
+    tile: int | None  # the finest tile size whose bound lies within the tolerance
+
+    @property
+    def equivalent(self) -> bool:
+        return self.tile is not None
+
+    @property
+    def best(self) -> tuple[int, float] | None:
+        """(tile size, bound) of the smallest bound over the scales, or None when no scale bounds every tile."""
+        finite = [(bound, tile) for tile, bound in self.ruled_out.items() if np.isfinite(bound)]
+        if not finite:
+            return None
+        bound, tile = min(finite)
+        return tile, bound
+
+
+@dataclass(frozen=True)
+class TileTest:
+    """The per-tile test of one scale before any decision: the t-test, which tiles are trusted, the means."""
+
+    kind: str  # "welch" or "paired"
+    result: TTestResult
+    suspect: np.ndarray  # tile-channels whose Welch samples are clearly not normal
+    checked: bool  # normality checked (enough passes)
+    ref_mean: np.ndarray
+
+
+def scale_factors(run: TileStats, tile: int | None = None) -> list[int]:
+    """The factors of the stored tile that give the tested scales: 1, 2, 4, ... while a tile fits the image, or
+    the one factor of `tile` (which must be a multiple of the stored tile that fits the image)."""
+    if tile is not None:
+        if isinstance(tile, bool) or not isinstance(tile, (int, np.integer)) or tile < 1 or tile % run.tile:
+            raise WelchInputError(f"`tile` must be a multiple of the stored tile {run.tile}, got {tile!r}")
+        if tile > min(run.height, run.width):
+            raise WelchInputError(f"`tile` {tile} is larger than the image {run.width}x{run.height}")
+        return [tile // run.tile]
+    factors, f = [], 1
+    while run.tile * f <= min(run.height, run.width):
+        factors.append(f)
+        f *= 2
+    return factors
+
+
+def test_tiles(ref: TileStats, test: TileStats, kind: str, pvalue_method: str = "exact") -> TileTest:
+    """Welch's test (disjoint seeds) or the paired test (identical seeds) per tile and channel, with the
+    normality check of the Welch samples (of each side, or of the per-pass differences)."""
     if kind == "paired":
         if test.seeds == ref.seeds:
             test_sums = test.sums
@@ -164,18 +236,86 @@ def compare(
             )
         diffs = TileStats.from_sums(differences, ref.seeds, ref.height, ref.width, ref.tile)
         result = paired_from_stats(diffs.mean, diffs.variance, diffs.n, pvalue_method=pvalue_method)
-        suspect = normality(diffs).suspect
-        checked = diffs.n >= MIN_PASSES_FOR_NORMALITY
+        return TileTest(kind, result, normality(diffs).suspect, diffs.n >= MIN_PASSES_FOR_NORMALITY, ref.mean)
+    result = welch_from_stats(
+        ref.mean, ref.variance, ref.n, test.mean, test.variance, test.n, pvalue_method=pvalue_method
+    )
+    suspect = normality(ref).suspect | normality(test).suspect
+    return TileTest(kind, result, suspect, min(ref.n, test.n) >= MIN_PASSES_FOR_NORMALITY, ref.mean)
+
+
+def compare(
+    ref: TileStats,
+    test: TileStats,
+    alpha: float = 0.01,
+    test_kind: str = "auto",
+    pvalue_method: str = "exact",
+    tile: int | None = None,
+    tolerance: float | None = None,
+) -> Comparison:
+    """Test whether `test` converges to the same image as `ref`, per tile at every scale and as a whole.
+
+    Parameters
+    ----------
+    ref, test : TileStats
+        The two runs, on the same grid.
+    alpha : float
+        The false-positive rate of a `biased` verdict (and of an `equivalent` one when the true difference is at
+        the tolerance).
+    test_kind : {"auto", "welch", "paired"}
+        "auto" picks the paired test when both runs used the same seeds and Welch's test when they are disjoint.
+    pvalue_method : {"exact", "gauss", "as_erf"}
+        See `welch_core.ttest.two_sided_pvalue`.
+    tile : int, optional
+        Test only this tile size (a multiple of the stored tile); default: every scale.
+    tolerance : float, optional
+        Relative tolerance (0.005 for 0.5 %): enables the `equivalent` verdict.
+
+    Returns
+    -------
+    Comparison
+        The finest scale's per-tile results, with the verdict and the global p-value of all scales, the scales
+        themselves (`scales`), the base tiles no scale could test (`uncovered`) and the equivalence assessment.
+    """
+    alpha = check_alpha(alpha)
+    if tolerance is not None and not (isinstance(tolerance, (int, float)) and 0 < tolerance < 10):
+        raise WelchInputError(f"`tolerance` must be a relative difference in (0, 10), got {tolerance!r}")
+    ref.same_grid(test)
+    relation = seed_relation(ref.seeds, test.seeds)
+    kind = _choose_test(test_kind, relation, len(set(ref.seeds) & set(test.seeds)))
+    tests, scales = [], []
+    for f in scale_factors(ref, tile):  # one scale at a time: a coarser scale's sums are freed before the next
+        a, b = (ref, test) if f == 1 else (ref.retile(f), test.retile(f))
+        tests.append(test_tiles(a, b, kind, pvalue_method))
+        scales.append(_decide(a, b, tests[-1], pvalue_method, alpha))
+    scales = tuple(scales)
+    finest = scales[0]
+    uncovered = _uncovered(finest, scales)
+    relevant = ~(finest.reasons == Reason.ZERO_VARIANCE).all(axis=-1)
+    p_values = [s.p_value for s in scales if np.isfinite(s.p_value)]
+    p_value = min(1.0, len(scales) * min(p_values)) if p_values else float("nan")  # Bonferroni over the scales
+    equivalence = None
+    if tolerance is not None:
+        levels = [alpha / (len(scales) * s.pvalues.size) for s in scales]
+        equivalence = _equivalence(scales, tests, levels, uncovered, float(tolerance))
+    if any(s.n_deterministic for s in scales):
+        verdict, p_value = Verdict.BIASED, 0.0
+    elif equivalence is not None and equivalence.equivalent and uncovered.sum() <= MAX_UNTRUSTED_SHARE * relevant.sum():
+        verdict = Verdict.EQUIVALENT  # a difference, significant or not, that the intervals bound within tolerance
+    elif p_values and p_value <= alpha:
+        verdict = Verdict.BIASED
+    elif not any(s.used.any() for s in scales) or uncovered.sum() > MAX_UNTRUSTED_SHARE * relevant.sum():
+        verdict = Verdict.INCONCLUSIVE
     else:
-        result = welch_from_stats(
-            ref.mean, ref.variance, ref.n, test.mean, test.variance, test.n, pvalue_method=pvalue_method
-        )
-        suspect = normality(ref).suspect | normality(test).suspect
-        checked = min(ref.n, test.n) >= MIN_PASSES_FOR_NORMALITY
-    return _decide(ref, test, kind, pvalue_method, alpha, result, suspect, checked)
+        verdict = Verdict.NO_EVIDENCE
+    return dataclasses.replace(
+        finest, verdict=verdict, p_value=p_value, scales=scales, uncovered=uncovered, equivalence=equivalence
+    )
 
 
-def _decide(ref, test, kind, pvalue_method, alpha, result, suspect, checked) -> Comparison:
+def _decide(ref, test, tested: TileTest, pvalue_method, alpha) -> Comparison:
+    """One scale's verdict: its tiles by Holm and the KS test of uniformity (see `multitest`)."""
+    result, suspect = tested.result, tested.suspect
     tile_p = combine_channels(result.pvalue)
     trusted = ~suspect.any(axis=-1)
     used = np.isfinite(tile_p) & trusted
@@ -197,12 +337,12 @@ def _decide(ref, test, kind, pvalue_method, alpha, result, suspect, checked) -> 
         verdict=verdict,
         alpha=alpha,
         p_value=p_value,
-        test=kind,
+        test=tested.kind,
         pvalue_method=pvalue_method,
         result=result,
         tile_pvalues=tile_p,
         trusted=trusted,
-        normality_checked=checked,
+        normality_checked=tested.checked,
         global_test=glob,
         effect=effect,
         n_ref=ref.n,
@@ -211,3 +351,43 @@ def _decide(ref, test, kind, pvalue_method, alpha, result, suspect, checked) -> 
         height=ref.height,
         tile=ref.tile,
     )
+
+
+def _covering(finest: Comparison, scale: Comparison, values: np.ndarray, fill) -> np.ndarray:
+    """`values` of a scale's tiles at the finest grid: each finest tile gets its covering tile's value (`fill`
+    where the scale's grid, which drops incomplete tiles, does not reach)."""
+    ty, tx = finest.tile_pvalues.shape
+    f = scale.tile // finest.tile
+    rows, cols = np.arange(ty) // f, np.arange(tx) // f
+    inside = (rows[:, None] < values.shape[0]) & (cols[None, :] < values.shape[1])
+    r, c = np.minimum(rows, values.shape[0] - 1), np.minimum(cols, values.shape[1] - 1)
+    return np.where(inside, values[r[:, None], c[None, :]], fill)
+
+
+def _uncovered(finest: Comparison, scales) -> np.ndarray:
+    """Finest tiles that no scale tests (used: testable and trusted), among those not constant on both sides."""
+    covered = np.zeros(finest.tile_pvalues.shape, dtype=bool)
+    for scale in scales:
+        covered |= _covering(finest, scale, scale.used, False)
+    relevant = ~(finest.reasons == Reason.ZERO_VARIANCE).all(axis=-1)
+    return relevant & ~covered
+
+
+def _equivalence(scales, tests, levels, uncovered: np.ndarray, tolerance: float) -> Equivalence:
+    """Per scale, the largest relative bias its simultaneous intervals leave open over the tiles it must cover:
+    every tile whose region some scale can test, bar constant ones (whose difference is known to be zero)."""
+    finest = scales[0]
+    ruled_out = {}
+    for scale, tested, level in zip(scales, tests, levels, strict=True):
+        low, high = relative_interval(tested.result, tested.ref_mean, level)
+        bound = np.maximum(np.abs(low), np.abs(high))
+        equal = scale.reasons == Reason.ZERO_VARIANCE
+        used = scale.used[..., None] & (scale.reasons == Reason.VALID)
+        bounds = np.where(used, bound, np.where(equal, 0.0, np.inf))
+        per_tile = np.nanmax(np.where(np.isnan(bounds), np.inf, bounds), axis=-1)
+        # Tiles this scale must bound: those whose region is testable somewhere; its grid must reach them all.
+        needed = _covering(finest, scale, per_tile, np.inf)
+        needed = np.where(uncovered, 0.0, needed)
+        ruled_out[scale.tile] = float(needed.max()) if (~uncovered).any() else float("inf")
+    within = [tile for tile, bound in ruled_out.items() if bound <= tolerance]
+    return Equivalence(tolerance, ruled_out, min(within) if within else None)

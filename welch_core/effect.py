@@ -12,7 +12,7 @@ from scipy import special
 
 from .ttest import TTestResult
 
-__all__ = ["DETECTION_POWER", "Effect", "effect_sizes"]
+__all__ = ["DETECTION_POWER", "Effect", "effect_sizes", "relative_interval"]
 
 #: Power at which the minimum detectable bias is quoted (the usual convention in power analysis).
 DETECTION_POWER = 0.8
@@ -45,3 +45,17 @@ def effect_sizes(result: TTestResult, ref_mean: np.ndarray, alpha: float, n_test
         )
         low, high = rel - half / scale, rel + half / scale  # a zero reference mean gives inf/NaN, not a warning
     return Effect(rel, low, high, detectable)
+
+
+def relative_interval(result: TTestResult, ref_mean: np.ndarray, level) -> tuple[np.ndarray, np.ndarray]:
+    """The two-sided t interval of the relative difference (test - reference) / |reference| at error `level`
+    per element (a scalar or an array broadcast against the result: a Bonferroni share, or the nominal level of
+    a group-sequential boundary), with the t quantile at the element's own degrees of freedom.
+
+    Elements without a p-value get NaN; a zero reference mean gives an infinite interval.
+    """
+    scale = np.abs(ref_mean)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        half = special.stdtrit(result.df, 1.0 - np.asarray(level, dtype=float) / 2.0) * result.standard_error
+        rel = result.mean_difference / scale
+        return rel - half / scale, rel + half / scale

@@ -74,7 +74,7 @@ from scipy import optimize, special
 
 from .errors import WelchInputError
 
-__all__ = ["boundaries", "nominal_levels", "obrien_fleming_spending"]
+__all__ = ["SPENDING", "boundaries", "nominal_levels", "obrien_fleming_spending", "pocock_spending"]
 
 #: Boundaries above this are returned as inf: 2 Phi(-40) ~ 1e-349 is below the smallest double.
 _C_MAX = 40.0
@@ -177,10 +177,37 @@ def obrien_fleming_spending(t: npt.ArrayLike, alpha: npt.ArrayLike) -> np.ndarra
     return np.where(t >= 1.0, alpha, spent)
 
 
-def _log_spending(t: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+def pocock_spending(t: npt.ArrayLike, alpha: npt.ArrayLike) -> np.ndarray:
+    """Lan-DeMets Pocock-type spending function, ``alpha(t) = alpha ln(1 + (e - 1) t)`` for t in [0, 1], `alpha`
+    for t >= 1 (Lan and DeMets 1983; Kim and DeMets 1987).
+
+    It spends evenly on the log scale of the information: boundaries are nearly constant over the looks, so a
+    large bias stops the run early at little cost in z (the price is a somewhat higher last boundary than
+    O'Brien-Fleming's). Arguments and errors as `obrien_fleming_spending`.
+    """
+    t = _as_float_array("t", t)
+    alpha = _as_float_array("alpha", alpha)
+    if not np.all(t >= 0.0):
+        raise WelchInputError(f"`t` must be >= 0, got {_show(t)}")
+    _check_alphas("alpha", alpha)
+    t, alpha = np.broadcast_arrays(t, alpha)
+    return np.where(t >= 1.0, alpha, alpha * np.log1p((math.e - 1.0) * np.minimum(t, 1.0)))
+
+
+#: Spending functions by name: (the function, log of it for fractions (rows) and alphas (columns)).
+SPENDING = {
+    "obrien_fleming": obrien_fleming_spending,
+    "pocock": pocock_spending,
+}
+
+
+def _log_spending(t: np.ndarray, alpha: np.ndarray, spending: str = "obrien_fleming") -> np.ndarray:
     """log alpha(t) for t in (0, 1] (rows) and alphas (columns); finite far below the smallest double."""
-    z = -special.ndtri(alpha / 2.0)
-    logs = _LOG2 + special.log_ndtr(-z[None, :] / np.sqrt(t)[:, None])
+    if spending == "pocock":
+        logs = np.log(alpha)[None, :] + np.log(np.log1p((math.e - 1.0) * t))[:, None]
+    else:
+        z = -special.ndtri(alpha / 2.0)
+        logs = _LOG2 + special.log_ndtr(-z[None, :] / np.sqrt(t)[:, None])
     return np.where(t[:, None] >= 1.0, np.log(alpha)[None, :], logs)
 
 
@@ -506,8 +533,8 @@ def _propagate_all(
 # -- public ------------------------------------------------------------------------------------------------------
 
 
-def boundaries(fractions: npt.ArrayLike, alphas: npt.ArrayLike) -> np.ndarray:
-    """Two-sided group-sequential boundaries by Lan-DeMets alpha spending with O'Brien-Fleming shape.
+def boundaries(fractions: npt.ArrayLike, alphas: npt.ArrayLike, spending: str = "obrien_fleming") -> np.ndarray:
+    """Two-sided group-sequential boundaries by Lan-DeMets alpha spending (O'Brien-Fleming shape by default).
 
     Parameters
     ----------
@@ -517,6 +544,8 @@ def boundaries(fractions: npt.ArrayLike, alphas: npt.ArrayLike) -> np.ndarray:
         last one may be >= 1.
     alphas : array_like
         Overall two-sided levels, 1-D, each in (0, 1) (one per hypothesis, e.g. its Bonferroni share).
+    spending : {"obrien_fleming", "pocock"}
+        The spending function (see `SPENDING`).
 
     Returns
     -------
@@ -542,8 +571,10 @@ def boundaries(fractions: npt.ArrayLike, alphas: npt.ArrayLike) -> np.ndarray:
         raise WelchInputError(f"`fractions` may be >= 1 only at the last look, got {_show(t)}")
     alphas = _as_vector("alphas", alphas)
     _check_alphas("alphas", alphas)
+    if spending not in SPENDING:
+        raise WelchInputError(f"`spending` must be one of {tuple(SPENDING)}, got {spending!r}")
     t = np.minimum(t, 1.0)
-    return _compute(t, _log_spending(t, alphas), obrien_fleming_spending(t[0], alphas))
+    return _compute(t, _log_spending(t, alphas, spending), SPENDING[spending](t[0], alphas))
 
 
 def nominal_levels(c: npt.ArrayLike) -> np.ndarray:
