@@ -281,23 +281,16 @@ def compare(
     if tolerance is not None and not (isinstance(tolerance, (int, float)) and 0 < tolerance < 10):
         raise WelchInputError(f"`tolerance` must be a relative difference in (0, 10), got {tolerance!r}")
     ref.same_grid(test)
-    relation = seed_relation(ref.seeds, test.seeds)
-    kind = _choose_test(test_kind, relation, len(set(ref.seeds) & set(test.seeds)))
-    tests, scales = [], []
-    for f in scale_factors(ref, tile):  # one scale at a time: a coarser scale's sums are freed before the next
-        a, b = (ref, test) if f == 1 else (ref.retile(f), test.retile(f))
-        tests.append(test_tiles(a, b, kind, pvalue_method))
-        scales.append(_decide(a, b, tests[-1], pvalue_method, alpha))
-    scales = tuple(scales)
+    kind = choose_test(ref, test, test_kind)
+    scales, tests, uncovered = assess_scales(ref, test, kind, pvalue_method, alpha, tile)
     finest = scales[0]
-    uncovered = _uncovered(finest, scales)
     relevant = ~(finest.reasons == Reason.ZERO_VARIANCE).all(axis=-1)
     p_values = [s.p_value for s in scales if np.isfinite(s.p_value)]
     p_value = min(1.0, len(scales) * min(p_values)) if p_values else float("nan")  # Bonferroni over the scales
     equivalence = None
     if tolerance is not None:
         levels = [alpha / (len(scales) * s.pvalues.size) for s in scales]
-        equivalence = _equivalence(scales, tests, levels, uncovered, float(tolerance))
+        equivalence = bound_differences(scales, tests, levels, uncovered, float(tolerance))
     if any(s.n_deterministic for s in scales):
         verdict, p_value = Verdict.BIASED, 0.0
     elif equivalence is not None and equivalence.equivalent and uncovered.sum() <= MAX_UNTRUSTED_SHARE * relevant.sum():
@@ -311,6 +304,23 @@ def compare(
     return dataclasses.replace(
         finest, verdict=verdict, p_value=p_value, scales=scales, uncovered=uncovered, equivalence=equivalence
     )
+
+
+def assess_scales(ref: TileStats, test: TileStats, kind: str, pvalue_method: str, alpha: float, tile=None):
+    """Every scale tested and judged on its own: (the scales' comparisons, their tile tests, the finest tiles no
+    scale can test). `compare` combines them into one verdict; the group-sequential `looks` use them too."""
+    tests, scales = [], []
+    for f in scale_factors(ref, tile):  # one scale at a time: a coarser scale's sums are freed before the next
+        a, b = (ref, test) if f == 1 else (ref.retile(f), test.retile(f))
+        tests.append(test_tiles(a, b, kind, pvalue_method))
+        scales.append(_decide(a, b, tests[-1], pvalue_method, alpha))
+    return tuple(scales), tests, _uncovered(scales[0], scales)
+
+
+def choose_test(ref: TileStats, test: TileStats, test_kind: str = "auto") -> str:
+    """ "welch" or "paired" for these runs' seeds (see `compare`); raises when the seeds fit neither."""
+    relation = seed_relation(ref.seeds, test.seeds)
+    return _choose_test(test_kind, relation, len(set(ref.seeds) & set(test.seeds)))
 
 
 def _decide(ref, test, tested: TileTest, pvalue_method, alpha) -> Comparison:
@@ -373,9 +383,11 @@ def _uncovered(finest: Comparison, scales) -> np.ndarray:
     return relevant & ~covered
 
 
-def _equivalence(scales, tests, levels, uncovered: np.ndarray, tolerance: float) -> Equivalence:
+def bound_differences(scales, tests, levels, uncovered: np.ndarray, tolerance: float) -> Equivalence:
     """Per scale, the largest relative bias its simultaneous intervals leave open over the tiles it must cover:
-    every tile whose region some scale can test, bar constant ones (whose difference is known to be zero)."""
+    every tile whose region some scale can test, bar constant ones (whose difference is known to be zero).
+    `levels` are the per-tile-channel error levels of each scale's intervals (a Bonferroni share, or the nominal
+    level of a group-sequential boundary)."""
     finest = scales[0]
     ruled_out = {}
     for scale, tested, level in zip(scales, tests, levels, strict=True):
