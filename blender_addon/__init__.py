@@ -5,7 +5,7 @@ The submodules are imported on registration so ``python -m blender_addon.build``
 
 import importlib
 
-_MODULES = ("preferences", "properties", "operators", "ui")
+_MODULES = ("preferences", "properties", "operators", "ui", "overlay")
 
 
 def _modules():

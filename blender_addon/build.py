@@ -1,17 +1,25 @@
-"""Build the extension zips without a Blender binary.
+"""Build the extension zips, or the legacy add-on zip, without a Blender binary.
 
     python -m blender_addon.build [--platform linux-x64 ...] [--dist-dir dist] [--offline]
+    python -m blender_addon.build --legacy [--dist-dir dist]
 
 For each chosen platform (default: all the manifest declares) the cp311 wheels the manifest lists are downloaded
 into ``./wheels`` (kept as a cache, nothing else in the repository is written), the files selected by the
 manifest's ``[build]`` rules are staged with a manifest limited to those platforms, ``blender_ext.py build
 --split-platforms`` (shipped inside the bpy wheel) writes one zip per platform into ``dist/``, and every zip is
-validated. Exit code 0 on success, 1 on failure with a one-line message on stderr.
+validated.
+
+``--legacy`` writes ``dist/<id>-<version>-legacy.zip`` for Blender 3.4 to 4.1 (*Preferences > Add-ons > Install*):
+the same files under one top folder named after the id, without the manifest and without wheels (those Blenders
+bring numpy; scipy comes from the system, e.g. Debian's ``python3-scipy``). Blender reads its ``bl_info``.
+
+Exit code 0 on success, 1 on failure with a one-line message on stderr.
 """
 
 from __future__ import annotations
 
 import argparse
+import ast
 import importlib.util
 import os
 import re
@@ -20,6 +28,7 @@ import subprocess
 import sys
 import tempfile
 import tomllib
+import zipfile
 from pathlib import Path
 from types import ModuleType
 
@@ -172,14 +181,73 @@ def build(platforms: list[str] | None, dist_dir: Path, root: Path = ROOT, offlin
     return zips
 
 
+def legacy_zip_name(manifest: dict) -> str:
+    return f"{manifest['id']}-{manifest['version']}-legacy.zip"
+
+
+def read_bl_info(source: str) -> dict:
+    """``bl_info`` the way Blender's add-on list reads it: the lines from ``bl_info`` to the first blank line,
+    as a literal (the module is not run)."""
+    lines = source.splitlines()
+    start = next((i for i, line in enumerate(lines) if line.startswith("bl_info")), None)
+    if start is None:
+        raise BuildError("__init__.py has no bl_info: Blender before 4.2 can't install the add-on")
+    end = next((i for i in range(start, len(lines)) if not lines[i].strip()), len(lines))
+    try:
+        return ast.literal_eval(ast.parse("\n".join(lines[start:end])).body[0].value)
+    except (SyntaxError, ValueError, IndexError, AttributeError) as ex:
+        raise BuildError(f"bl_info in __init__.py is not a literal ending at a blank line: {ex}") from None
+
+
+def check_legacy(path: Path, manifest: dict) -> None:
+    """The zip is one package named after the id, with a ``bl_info`` that agrees with the manifest."""
+    top = manifest["id"]
+    with zipfile.ZipFile(path) as archive:
+        names = archive.namelist()
+        outside = [n for n in names if not n.startswith(f"{top}/")]
+        if outside:
+            raise BuildError(f"{path.name}: {outside[0]} is outside the package folder {top}/")
+        info = read_bl_info(archive.read(f"{top}/__init__.py").decode("utf-8"))
+    version = ".".join(str(v) for v in info.get("version", ()))
+    if version != manifest["version"]:
+        raise BuildError(f"bl_info version {version} differs from the manifest's {manifest['version']}")
+    if info.get("name") != manifest["name"]:
+        raise BuildError(f"bl_info name {info.get('name')!r} differs from the manifest's {manifest['name']!r}")
+
+
+def build_legacy(dist_dir: Path, root: Path = ROOT) -> Path:
+    """Build and check the legacy add-on zip; returns its path."""
+    manifest = read_manifest(root)
+    files = select_files(load_blender_ext(), root, manifest)
+    dist_dir.mkdir(parents=True, exist_ok=True)
+    path = dist_dir / legacy_zip_name(manifest)
+    partial = path.with_name(path.name + ".partial")
+    with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
+        for rel in files:
+            archive.write(root / rel, f"{manifest['id']}/{rel}")
+    try:
+        check_legacy(partial, manifest)
+    except BuildError:
+        partial.unlink()
+        raise
+    os.replace(partial, path)
+    return path
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m blender_addon.build", description=__doc__.splitlines()[0])
     parser.add_argument("--platform", action="append", help="Blender platform, e.g. linux-x64 (repeatable)")
     parser.add_argument("--dist-dir", type=Path, default=ROOT / "dist", help="output folder (default: dist)")
     parser.add_argument("--offline", action="store_true", help="fail instead of downloading missing wheels")
+    parser.add_argument("--legacy", action="store_true", help="build the add-on zip for Blender 3.4 to 4.1 instead")
     args = parser.parse_args(argv)
+    if args.legacy and args.platform:
+        parser.error("--legacy has no platforms: it bundles no wheels")
     try:
-        zips = build(args.platform, args.dist_dir.resolve(), offline=args.offline)
+        if args.legacy:
+            zips = [build_legacy(args.dist_dir.resolve())]
+        else:
+            zips = build(args.platform, args.dist_dir.resolve(), offline=args.offline)
     except BuildError as ex:
         print(f"error: {ex}", file=sys.stderr)
         return 1

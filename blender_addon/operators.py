@@ -11,19 +11,20 @@ import bpy
 from bpy.app.handlers import persistent
 from bpy.props import BoolProperty, IntProperty, StringProperty
 
-from . import checks, results, runner, session
+from . import checks, overlay, results, runner, session
 from ._siblings import batch, welch_core
 from .state import current
 
 TIMER_SECONDS = 0.25
-REDRAW_AREAS = {"PROPERTIES", "IMAGE_EDITOR", "STATUSBAR"}
+REDRAW_AREAS = {"PROPERTIES", "IMAGE_EDITOR"}
 
 
 def compare_and_show(context, reference_path: str, test_path: str, alpha: float) -> dict:
     comparison, reference, test = results.compare_files(reference_path, test_path, alpha)
     summary = results.store(comparison, reference, test, {"reference": reference_path, "test": test_path})
     image = results.refresh(context)
-    results.show_in_image_editor(context, image)
+    if not overlay.shown_anywhere(context):  # else the map is over the render someone looks at already
+        results.show_in_image_editor(context, image)
     return summary
 
 
@@ -36,6 +37,13 @@ def tag_redraw(context) -> None:
         for area in window.screen.areas:
             if area.type in REDRAW_AREAS:
                 area.tag_redraw()
+
+
+def tag_redraw_status_bar(context) -> None:
+    """Redraw the status bar, which ``screen.areas`` does not list (it belongs to the window): Blender redraws it
+    when the workspace's status text is set, here to none, as every modal tool leaves it when it ends."""
+    if context.workspace is not None:
+        context.workspace.status_text_set_internal(None)
 
 
 class WELCH_BIAS_OT_run(bpy.types.Operator):
@@ -51,6 +59,7 @@ class WELCH_BIAS_OT_run(bpy.types.Operator):
     )
 
     _timer = None
+    _status = ""  # the status line last shown, so the status bar is redrawn only when it changes
 
     @classmethod
     def poll(cls, context):
@@ -94,6 +103,7 @@ class WELCH_BIAS_OT_run(bpy.types.Operator):
         """Turn the ended session into a result, an error or a resumable checkpoint."""
         ended, run = current.session, current.run
         tag_redraw(context)
+        tag_redraw_status_bar(context)
         if ended.state == runner.FINISHED:
             try:
                 summary = compare_and_show(context, run.reference, run.test, run.alpha)
@@ -136,6 +146,9 @@ class WELCH_BIAS_OT_run(bpy.types.Operator):
             return {"PASS_THROUGH"}
         if current.session is not None and current.session.poll() == runner.RUNNING:
             tag_redraw(context)
+            if current.session.status_text() != self._status:
+                self._status = current.session.status_text()
+                tag_redraw_status_bar(context)
             return {"PASS_THROUGH"}
         context.window_manager.event_timer_remove(self._timer)
         self._timer = None

@@ -46,6 +46,12 @@ def _refresh_result(_self, context):
     results.refresh(context)
 
 
+def _redraw_overlay(_self, context):
+    from . import overlay
+
+    overlay.tag_redraw(context)
+
+
 class WELCH_BIAS_PG_override(bpy.types.PropertyGroup):
     text: StringProperty(
         name="Override",
@@ -113,9 +119,15 @@ class WELCH_BIAS_PG_settings(bpy.types.PropertyGroup):
     channel: EnumProperty(
         name="Channel", description="Channel shown by the One Channel map", items=CHANNELS, update=_refresh_result
     )
+    show_overlay: BoolProperty(
+        name="Show Overlay",
+        description="Draw the p-value map over the image in every Image Editor that shows a render of this size",
+        default=True,
+        update=_redraw_overlay,
+    )
     opacity: FloatProperty(
         name="Opacity",
-        description="Opacity of the p-value map over the mean render",
+        description="Opacity of the p-value map, in the result image and in the overlay",
         default=0.6,
         min=0.0,
         max=1.0,

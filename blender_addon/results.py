@@ -1,9 +1,10 @@
 """What a comparison turns into in Blender: the p-value map over the mean render as an image, and a summary.
 
 The image is built in numpy with ``welch_core`` (tone-mapped mean render, p-value colours blended over it) and
-written into ``bpy.data.images`` in one ``foreach_set``. The summary is `batch.summary`'s (the words the command
-line prints and the report shows) plus what only the panel needs, so ``draw()`` never computes. numpy, scipy
-and the statistics are imported when a result is made, never when the add-on registers.
+written into ``bpy.data.images`` in one ``foreach_set``; `refresh` also renews the overlay's vertices (the map
+drawn over other images, ``overlay.py``). The summary is `batch.summary`'s (the words the command line prints
+and the report shows) plus what only the panel needs, so ``draw()`` never computes. numpy, scipy and the
+statistics are imported when a result is made, never when the add-on registers.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import importlib
 
 import bpy
 
+from . import overlay
 from ._siblings import batch, welch_core
 from .state import current
 
@@ -173,10 +175,12 @@ def store(comparison, reference, test, sources: dict[str, str]) -> dict:
 
 
 def refresh(context) -> bpy.types.Image | None:
-    """Rebuild the result image from the cached comparison with the scene's display settings."""
+    """Rebuild the result image and the overlay from the cached comparison with the scene's display settings."""
     if current.comparison is None or not current.stats:
         return None
     settings = context.scene.welch_bias
+    overlay.update(settings)
+    overlay.tag_redraw(context)
     reference, test = current.stats
     # The test side is the render under suspicion: its mean is the picture under the map.
     base = test if test.mean_image is not None else reference

@@ -58,7 +58,7 @@ def extension_wheel_paths() -> list[str]:
     version = f"python{sys.version_info.major}.{sys.version_info.minor}"
     try:
         path = bpy.utils.user_resource("EXTENSIONS", path=f".local/lib/{version}/site-packages")
-    except TypeError:  # Blender before 4.2 has no extensions
+    except (TypeError, ValueError):  # Blender before 4.2 has no extensions (3.4 raises ValueError)
         return []
     return [path] if Path(path).is_dir() else []
 

@@ -32,6 +32,9 @@ class AddonState:
     comparison: object = None  # the last welch_core.Comparison, to re-colour the map without recomputing
     stats: tuple = field(default_factory=tuple)  # (reference, test) TileStats of the last comparison
     highlight: tuple[int, int] | None = None  # (row, col) of the tile outlined in the result image
+    overlay: object = None  # overlay.Geometry of the comparison with the display settings, or None
+    overlay_batches: object = None  # the GPU batches drawn from `overlay`, made by the first draw after a change
+    overlay_error: str = ""  # why the overlay could not be drawn, shown in the panel
     last_error: str = ""
 
     def running(self) -> bool:
@@ -39,6 +42,7 @@ class AddonState:
 
     def clear_result(self) -> None:
         self.result, self.comparison, self.stats, self.highlight = None, None, (), None
+        self.overlay, self.overlay_batches, self.overlay_error = None, None, ""
 
     def reset(self) -> None:
         """Forget everything (a new file was loaded, the add-on is being disabled)."""

@@ -1,7 +1,8 @@
 """Panels in Properties > Render (Cycles) and the Image Editor sidebar, and a progress bar in the status bar.
 
 ``draw()`` only reads the scene settings and the cached state (``state.py``); every number shown was computed
-when the run ended. Layout calls that Blender 3.4 lacks (``panel``, ``progress``) fall back to boxes and labels.
+when the run ended. Layout calls that Blender 3.4 lacks (``panel``, ``progress``) fall back to boxes and labels
+(a bar of block characters).
 """
 
 import bpy
@@ -12,6 +13,9 @@ from .session import settings_key
 from .state import current
 
 fmt = batch.fmt
+
+BAR_BLOCK = "\u2588"  # a full block: Blender before 4.0 has no progress bar widget, its UI font has this glyph
+BAR_BLOCKS = 12  # blocks of a full bar, which fit half of a narrow sidebar
 
 # Cycles settings that bias the image by design (clamping, Filter Glossy, caustics off, Fast GI), as overrides.
 OVERRIDE_PRESETS = (
@@ -35,12 +39,17 @@ def subpanel(layout, idname: str, title: str, default_closed: bool = False):
     return box
 
 
-def progress_bar(layout, factor: float, text: str) -> None:
-    """A progress bar (Blender 4.0+), else the text with the percentage."""
+def progress_bar(layout, factor: float, text: str, header: bool = False) -> None:
+    """A progress bar (Blender 4.0+); before, the text next to a bar of block characters, or in a header (which
+    gives items the width of their text) the text and the percentage."""
     if hasattr(layout, "progress"):
         layout.progress(factor=factor, type="BAR", text=text)
-    else:
+    elif header:
         layout.label(text=f"{text} ({factor:.0%})", icon="TIME")
+    else:
+        split = layout.split(factor=0.55)
+        split.label(text=text)
+        split.label(text=BAR_BLOCK * round(min(max(factor, 0.0), 1.0) * BAR_BLOCKS))
 
 
 def draw_overrides(layout, settings) -> None:
@@ -125,7 +134,10 @@ def draw_display(layout, settings) -> None:
     col.prop(settings, "map_mode")
     if settings.map_mode == "CHANNEL":
         col.prop(settings, "channel")
+    col.prop(settings, "show_overlay")
     col.prop(settings, "opacity", slider=True)
+    if current.overlay_error:
+        col.label(text=f"Overlay unavailable: {current.overlay_error}", icon="ERROR")
     col.operator("welch_bias.show_result", icon="IMAGE_DATA")
 
 
@@ -214,7 +226,7 @@ def draw_status(self, _context):
     """Progress in the status bar while a run goes on, so it is visible from any editor."""
     if current.running():
         row = self.layout.row(align=True)
-        progress_bar(row, current.session.fraction, current.session.status_text())
+        progress_bar(row, current.session.fraction, current.session.status_text(), header=True)
         row.operator("welch_bias.cancel", text="", icon="CANCEL")
 
 

@@ -108,7 +108,7 @@ class FakeLayout:
     def _child(self, kind, **kw):
         check_call(kind, **kw)
         self.calls.append((kind, kw))
-        return FakeLayout(self.calls)
+        return type(self)(self.calls)
 
     def row(self, **kw):
         return self._child("row", **kw)
@@ -118,6 +118,9 @@ class FakeLayout:
 
     def box(self):
         return self._child("box")
+
+    def split(self, **kw):
+        return self._child("split", **kw)
 
     def panel(self, idname, default_closed=False):
         check_call("panel", idname=idname, default_closed=default_closed)
@@ -154,8 +157,17 @@ class FakeLayout:
         return [kw for kind, kw in self.calls if kind == "operator"]
 
 
-def draw_panel():
-    layout = FakeLayout()
+class FakeLayout34(FakeLayout):
+    """UILayout of Blender 3.4: no ``panel`` (4.1+) and no ``progress`` (4.0+)."""
+
+    def __getattribute__(self, name):
+        if name in {"panel", "progress"}:
+            raise AttributeError(f"'UILayout' object has no attribute {name!r}")
+        return super().__getattribute__(name)
+
+
+def draw_panel(layout_type=FakeLayout):
+    layout = layout_type()
     ui.WelchBiasPanel.draw(SimpleNamespace(layout=layout), bpy.context)
     return layout
 
@@ -444,6 +456,38 @@ def test_panel_with_a_result(scene, tmp_path, bias, verdict):
     image_editor = FakeLayout()
     ui.WELCH_BIAS_PT_image_editor.draw(SimpleNamespace(layout=image_editor), bpy.context)
     assert image_editor.texts() == texts
+
+
+def test_panel_in_blender_34_uses_boxes_and_block_bars(scene, tmp_path):
+    settings = scene.welch_bias
+    settings.mode = "STATS_FILES"
+    settings.reference_file = write_stats(tmp_path / "ref.npz", range(0, 16), seed=8)
+    settings.test_file = write_stats(tmp_path / "test.npz", range(16, 32), bias=0.3, seed=9)
+    bpy.ops.welch_bias.run()
+    layout = draw_panel(FakeLayout34)
+    kinds = {kind for kind, _ in layout.calls}
+    assert "panel" not in kinds and "progress" not in kinds
+    texts = layout.texts()
+    assert "Biased" in texts and "P-Value Histogram" in texts and "Most Significant Tiles" in texts
+    histogram = state.result["histogram"]
+    for bar in histogram:
+        position = texts.index(f"p {bar['label']}: {bar['count']}")
+        assert texts[position + 1] == ui.BAR_BLOCK * round(bar["fill"] * ui.BAR_BLOCKS)
+    assert ui.BAR_BLOCK * ui.BAR_BLOCKS in texts  # the highest bin fills its bar
+
+
+def test_status_bar_in_blender_34_shows_the_progress_as_text(scene, tmp_path):
+    side = runner.Side("Reference", RenderJob(out=str(tmp_path / "r.npz"), seeds=range(4), blend="x.blend"))
+    command = Command([sys.executable, "-c", "import time; time.sleep(60)"], {}, str(tmp_path))
+    state.session = runner.Session([side], [command])
+    try:
+        state.session.poll()
+        status = FakeLayout34()
+        ui.draw_status(SimpleNamespace(layout=status), bpy.context)
+        assert status.texts() == ["Reference: starting (0%)"]
+        assert [op["idname"] for op in status.operators()] == ["welch_bias.cancel"]
+    finally:
+        state.session.cancel()
 
 
 def test_override_presets_add_overrides(scene):

@@ -171,3 +171,117 @@ def test_extension_builds_validates_and_installs(tmp_path):
         "reenabled": True,
     }
     assert Path(report["user_dir"]).is_dir() and user in Path(report["user_dir"]).parents
+
+
+# -- the legacy add-on (Blender 3.4 to 4.1) ------------------------------------------------------------------
+
+LEGACY_TOP_LEVEL = {"__init__.py", "blender_addon", "welch_core", "batch"}
+
+
+def test_bl_info_is_a_literal_blender_can_read():
+    info = build.read_bl_info((ROOT / "__init__.py").read_text(encoding="utf-8"))
+    assert info["name"] == MANIFEST["name"] and info["category"] == "Render"
+    assert info["blender"] == (3, 4, 0) and ".".join(map(str, info["version"])) == MANIFEST["version"]
+    assert info["description"] == MANIFEST["tagline"] and info["location"]
+
+
+def test_legacy_zip_is_one_package_without_wheels(tmp_path):
+    done = subprocess.run(
+        [sys.executable, "-m", "blender_addon.build", "--legacy", "--dist-dir", str(tmp_path)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode == 0, done.stderr
+    path = Path(done.stdout.strip())
+    assert path == tmp_path / f"{MANIFEST['id']}-{MANIFEST['version']}-legacy.zip"
+    assert [p.name for p in tmp_path.iterdir()] == [path.name]
+    with zipfile.ZipFile(path) as archive:
+        names = archive.namelist()
+        info = build.read_bl_info(archive.read(f"{MANIFEST['id']}/__init__.py").decode())
+    assert {n.split("/")[0] for n in names} == {MANIFEST["id"]}
+    assert {n.split("/")[1] for n in names} == LEGACY_TOP_LEVEL
+    package = MANIFEST["id"]
+    for required in ("batch/blender_entry.py", "blender_addon/overlay.py", "welch_core/__init__.py"):
+        assert f"{package}/{required}" in names
+    assert not [n for n in names if "__pycache__" in n or n.endswith((".pyc", ".whl", ".toml", "/build.py"))]
+    assert info["blender"] == (3, 4, 0)
+
+
+def test_legacy_build_refuses_an_init_blender_cannot_read(tmp_path):
+    root = tmp_path / "root"
+    (root / "blender_addon").mkdir(parents=True)
+    (root / "blender_addon" / "__init__.py").write_text("")
+    (root / "blender_manifest.toml").write_text((ROOT / "blender_manifest.toml").read_text(encoding="utf-8"))
+    for init, message in [
+        ("def register():\n    pass\n", "__init__.py has no bl_info"),
+        ('bl_info = {"name": "Welch Bias Test", "version": (0, 0, 9)}\n', "bl_info version 0.0.9 differs"),
+        ('bl_info = {"name": NAME}\n', "bl_info in __init__.py is not a literal"),
+    ]:
+        (root / "__init__.py").write_text(init)
+        with pytest.raises(build.BuildError, match=message):
+            build.build_legacy(tmp_path / "dist", root=root)
+        assert list((tmp_path / "dist").iterdir()) == []  # nothing half-written is left
+
+
+def test_legacy_build_has_no_platforms(tmp_path):
+    done = subprocess.run(
+        [sys.executable, "-m", "blender_addon.build", "--legacy", "--platform", "linux-x64"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode == 2 and "--legacy has no platforms" in done.stderr
+
+
+LEGACY_INSTALL_SCRIPT = textwrap.dedent(
+    """
+    import json, sys
+    import bpy
+
+    zip_path, module = sys.argv[1], sys.argv[2]
+    report = {}
+
+    def enabled():
+        return module in bpy.context.preferences.addons and hasattr(bpy.types.Scene, "welch_bias")
+
+    report["install"] = sorted(bpy.ops.preferences.addon_install(filepath=zip_path, overwrite=True))
+    report["enable"] = sorted(bpy.ops.preferences.addon_enable(module=module))
+    report["enabled"] = enabled()
+    report["addon_module"] = sys.modules[module + ".blender_addon._siblings"].ADDON_MODULE
+    report["operator"] = bpy.ops.welch_bias.run.idname()
+    report["prefs"] = bpy.context.preferences.addons[module].preferences.runs_to_keep
+    report["draw_handler"] = sys.modules[module + ".blender_addon.overlay"]._handle is not None
+    bpy.ops.preferences.addon_disable(module=module)
+    report["disabled"] = not enabled()
+    print("REPORT " + json.dumps(report))
+    """
+)
+
+
+@pytest.mark.slow
+def test_legacy_zip_installs_in_blender_50_too(tmp_path):
+    """Blender 4.2 and later still install legacy add-ons: the one zip serves every Blender from 3.4."""
+    path = build.build_legacy(tmp_path / "dist")
+    env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "user"))
+    done = subprocess.run(
+        [sys.executable, "-c", LEGACY_INSTALL_SCRIPT, str(path), MANIFEST["id"]],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    lines = [line for line in done.stdout.splitlines() if line.startswith("REPORT ")]
+    assert done.returncode == 0 and lines, done.stdout[-2000:] + done.stderr[-2000:]
+    assert json.loads(lines[-1][len("REPORT ") :]) == {
+        "install": ["FINISHED"],
+        "enable": ["FINISHED"],
+        "enabled": True,
+        "addon_module": MANIFEST["id"],
+        "operator": "WELCH_BIAS_OT_run",
+        "prefs": 10,
+        "draw_handler": True,
+        "disabled": True,
+    }
+    assert (tmp_path / "user").is_dir() and list((tmp_path / "user").rglob("overlay.py"))
