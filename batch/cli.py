@@ -29,6 +29,7 @@ import traceback
 
 from . import job as jobs
 from ._siblings import welch_core as wc
+from .check import DEFAULT_MAX_PASSES
 from .errors import BatchError
 
 EXIT_OK, EXIT_BIASED, EXIT_USAGE, EXIT_INCONCLUSIVE, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 4, 130
@@ -83,6 +84,65 @@ def build_parser() -> argparse.ArgumentParser:
     )
     jobs.add_arguments(r)
     r.add_argument("--json-progress", action="store_true", help="one JSON line per event on stdout, for programs")
+    r.add_argument(
+        "--serve",
+        action="store_true",
+        help="for programs: render the seeds in chunks, one per line of stdin giving the number of passes; the "
+        "scene stays loaded, the statistics are saved after each chunk",
+    )
+
+    k = sub.add_parser(
+        "check",
+        help="render both sides in chunks until the data decide: biased, equivalent, or the budget is spent",
+        description="Render the reference and the test side in interleaved chunks and look at the data after each "
+        "chunk, with group-sequential boundaries that keep the false-positive rate of `biased` (and of "
+        "`equivalent` at a true bias equal to the tolerance) at alpha however many looks it takes. Stops at "
+        "`biased` or `equivalent`; at the budget the verdict is `inconclusive` and the report says which bias "
+        "it rules out. Same build on both sides: paired (identical seeds) unless --unpaired; two builds: "
+        "disjoint seeds. Ctrl-C keeps everything; --resume continues.",
+    )
+    k.add_argument("blend", nargs="?", metavar="SCENE.blend", help="scene file of the reference side")
+    k.add_argument("--scene", help="a built-in scene instead of a file (both sides)")
+    k.add_argument("--blend-scene", metavar="NAME", help="which scene of SCENE.blend (default: its active one)")
+    k.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="RNA.PATH=VALUE",
+        help="property override of the test side, repeatable (as render --set)",
+    )
+    k.add_argument("--test-blend", metavar="OTHER.blend", help="the test side's scene file (default: SCENE.blend)")
+    k.add_argument("--test-blend-scene", metavar="NAME", help="which scene of the test side's file")
+    k.add_argument("--blender", metavar="PATH", help="Blender executable of the reference side (default: bpy)")
+    k.add_argument("--test-blender", metavar="PATH", help="Blender executable of the test side (default: --blender)")
+    k.add_argument(
+        "--tolerance",
+        type=tolerance_arg,
+        default=0.01,
+        metavar="PERCENT",
+        help="stop at `equivalent` once every tile is bounded within this relative difference (default 1%%)",
+    )
+    k.add_argument(
+        "--alpha", type=_alpha, default=DEFAULT_ALPHA, help="false-positive rate of either verdict (default 0.01)"
+    )
+    budget = k.add_mutually_exclusive_group()
+    budget.add_argument(
+        "--max-passes",
+        type=jobs.positive_int,
+        metavar="N",
+        help=f"the most passes a side (default {DEFAULT_MAX_PASSES})",
+    )
+    budget.add_argument("--max-seconds", type=float, metavar="S", help="the most render seconds, both sides together")
+    k.add_argument("--spp", type=jobs.positive_int, default=1, help="samples per pixel per pass (default 1)")
+    k.add_argument("--tile", type=jobs.positive_int, default=16, help="finest tile edge in pixels (default 16)")
+    k.add_argument("--resolution", type=jobs.positive_int, nargs=2, metavar=("W", "H"), help="override the resolution")
+    k.add_argument("--device", default="CPU", choices=jobs.DEVICES, help="Cycles device (default CPU)")
+    k.add_argument("--sampling-pattern", metavar="PATTERN", help="Cycles sampling pattern (as render)")
+    k.add_argument("--unpaired", action="store_true", help="disjoint seeds even on one build (an A/A check)")
+    k.add_argument("--resume", action="store_true", help="continue a stopped check in --out")
+    k.add_argument("--json-progress", action="store_true", help="one JSON line per event on stdout, for programs")
+    k.add_argument("--out", required=True, metavar="DIR", help="folder for both sides' statistics and the report")
 
     i = sub.add_parser(
         "ingest",
@@ -227,9 +287,9 @@ def cmd_render(args) -> int:
 
         run_job(job, progress)
     else:
-        from .run import render_run
+        from .run import chunk_requests, render_run
 
-        render_run(job, progress)
+        render_run(job, progress, chunk_requests(sys.stdin) if args.serve else None)
     return EXIT_OK
 
 
@@ -276,6 +336,32 @@ def _content_seed(path: str) -> int:
         for chunk in iter(lambda: f.read(1 << 20), b""):
             digest.update(chunk)
     return int.from_bytes(digest.digest()[:8], "little") >> 2
+
+
+def cmd_check(args) -> int:
+    from . import summary as summaries
+    from .check import Check, check_job_from_args, final_verdict
+    from .progress import Progress
+    from .report import write_report
+
+    job = check_job_from_args(args)
+    os.makedirs(job.out, exist_ok=True)
+    look, ref, test = Check(job, Progress(0, args.json_progress, label="check")).run()
+    verdict = final_verdict(look)
+    result = wc.compare(ref, test, job.alpha, tolerance=job.tolerance)
+    summary = summaries.check_summary(result, ref, test, look, verdict, job, _load_looks(job))
+    write_report(job.out, summary, result, ref, test)
+    print(summaries.verdict_line(summary))
+    for line in summaries.console_lines(summary):
+        print(f"  {line}")
+    print(f"report: {os.path.join(job.out, 'report.html')}")
+    return verdict.exit_code
+
+
+def _load_looks(job) -> list[dict]:
+    import json
+
+    return json.loads(job.state_path().read_text())["looks"]
 
 
 def cmd_compare(args) -> int:
@@ -344,6 +430,7 @@ def cmd_demo(args) -> int:
 
 
 COMMANDS = {
+    "check": cmd_check,
     "render": cmd_render,
     "ingest": cmd_ingest,
     "compare": cmd_compare,

@@ -54,6 +54,31 @@ class Failed:
 
 
 @dataclass(frozen=True)
+class Saved:
+    """A chunk of passes is done and saved (``render --serve``): `out` holds `passes` passes now."""
+
+    name: ClassVar[str] = "saved"
+    out: str
+    passes: int
+
+
+@dataclass(frozen=True)
+class Looked:
+    """``check`` looked at the data: `passes` a side so far, the smallest p-value of a tested tile and the level
+    it must reach to stop the run, the relative bias ruled out so far (None: none yet), the verdict if reached
+    (None: go on), the looks left and the render seconds spent."""
+
+    name: ClassVar[str] = "look"
+    passes: int
+    p_value: float
+    threshold: float
+    ruled_out: float | None
+    verdict: str | None
+    left: int
+    seconds: float
+
+
+@dataclass(frozen=True)
 class Finished:
     """The job is done: `passes` passes are in `out`."""
 
@@ -62,11 +87,17 @@ class Finished:
     passes: int
 
 
-Event = Started | PassDone | Warned | Failed | Finished
+Event = Started | PassDone | Warned | Failed | Saved | Looked | Finished
 
-EVENT_TYPES: dict[str, type] = {cls.name: cls for cls in (Started, PassDone, Warned, Failed, Finished)}
+EVENT_TYPES: dict[str, type] = {cls.name: cls for cls in (Started, PassDone, Warned, Failed, Saved, Looked, Finished)}
 
-_FIELD_TYPES = {"int": (int,), "str": (str,), "float": (int, float), "float | None": (int, float, type(None))}
+_FIELD_TYPES = {
+    "int": (int,),
+    "str": (str,),
+    "float": (int, float),
+    "float | None": (int, float, type(None)),
+    "str | None": (str, type(None)),
+}
 
 
 def to_json(event: Event) -> dict:

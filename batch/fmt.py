@@ -32,6 +32,8 @@ def duration(seconds: float | None) -> str:
     """'42 s', '2 min 05 s', '2 h 01 min'; '?' when unknown."""
     if seconds is None or not math.isfinite(seconds) or seconds < 0:
         return "?"
+    if seconds < 9.95:
+        return f"{seconds:.1f} s"
     seconds = round(seconds)
     if seconds < 60:
         return f"{seconds} s"

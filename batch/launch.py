@@ -45,8 +45,9 @@ def job_command(
     python: str = sys.executable,
     python_paths: tuple[str, ...] | list[str] = (),
     base_env: dict[str, str] | None = None,
+    serve: bool = False,
 ) -> Command:
-    """The command that renders `job` with ``--json-progress``.
+    """The command that renders `job` with ``--json-progress`` (and ``--serve``: in chunks asked for on stdin).
 
     With ``job.blender``: that Blender opens the .blend (or starts from factory settings for a built-in scene)
     and runs the entry script with the job after ``--``. Without: ``python -m batch render`` with `python`, the
@@ -55,23 +56,25 @@ def job_command(
     env = dict(os.environ if base_env is None else base_env)
     env["PYTHONUNBUFFERED"] = "1"  # progress lines must arrive as they are printed, not when a buffer fills
     child = job.replace(blender=None)
+    mode = ["--json-progress", "--serve"] if serve else ["--json-progress"]
     if job.blender:
         # Blender's own Python must not pick up another Python's packages: a pip OpenEXR crashes Blender 3.4.
         for name in ("PYTHONPATH", "PYTHONHOME"):
             env.pop(name, None)
         opened = [child.blend] if child.blend else ["--factory-startup"]
         argv = [job.blender, "-b", *opened, "--python-exit-code", str(BLENDER_SCRIPT_FAILED)]
-        argv += ["--python", str(ENTRY_SCRIPT), "--", "render", *child.replace(blend=None).to_argv(), "--json-progress"]
+        argv += ["--python", str(ENTRY_SCRIPT), "--", "render", *child.replace(blend=None).to_argv(), *mode]
         return Command(argv, env)
     paths = [str(ROOT), *python_paths, *filter(None, env.get("PYTHONPATH", "").split(os.pathsep))]
     env["PYTHONPATH"] = os.pathsep.join(dict.fromkeys(paths))
-    return Command([python, "-m", "batch", "render", *child.to_argv(), "--json-progress"], env)
+    return Command([python, "-m", "batch", "render", *child.to_argv(), *mode], env)
 
 
 class JobProcess:
-    """A started job whose stdout (events) and stderr are read by threads, so polling never blocks."""
+    """A started job whose stdout (events) and stderr are read by threads, so polling never blocks. With
+    `requests`, its stdin stays open for `request` (a job started with ``serve=True``)."""
 
-    def __init__(self, command: Command):
+    def __init__(self, command: Command, requests: bool = False):
         self.events: queue.Queue[events.Event] = queue.Queue()
         self.stdout_tail: collections.deque[str] = collections.deque(maxlen=TAIL_LINES)
         self.stderr_tail: collections.deque[str] = collections.deque(maxlen=TAIL_LINES)
@@ -81,7 +84,7 @@ class JobProcess:
                 command.argv,
                 cwd=command.cwd,
                 env=command.env,
-                stdin=subprocess.DEVNULL,
+                stdin=subprocess.PIPE if requests else subprocess.DEVNULL,
                 stdout=subprocess.PIPE,
                 stderr=subprocess.PIPE,
                 text=True,
@@ -115,6 +118,22 @@ class JobProcess:
             if line.strip():
                 tail.append(line.rstrip())
 
+    def request(self, passes: int) -> None:
+        """Ask a serving job for its next `passes` passes (it answers with a `Saved` event)."""
+        try:
+            self.popen.stdin.write(f"{passes}\n")
+            self.popen.stdin.flush()
+        except (BrokenPipeError, OSError):
+            pass  # it has ended: its exit code tells why
+
+    def close_requests(self) -> None:
+        """No more chunks: a serving job finishes and exits."""
+        if self.popen.stdin is not None and not self.popen.stdin.closed:
+            try:
+                self.popen.stdin.close()
+            except (BrokenPipeError, OSError):
+                pass
+
     def drain(self) -> list[events.Event]:
         """Events received since the last call."""
         out = []
@@ -138,7 +157,9 @@ class JobProcess:
         return code
 
     def stop(self, timeout: float = 30.0) -> None:
-        """Ask the job to stop after its current pass (it saves and exits 130); kill it if it does not."""
+        """Ask the job to stop after its current pass (it saves and exits 130); kill it if it does not. A serving
+        job waiting for its next chunk just sees its requests end."""
+        self.close_requests()
         if self.popen.poll() is None:
             self.popen.send_signal(signal.SIGTERM)
             try:

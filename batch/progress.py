@@ -46,6 +46,13 @@ class Progress:
                 return f"warning: {message}"
             case events.Failed(message=message):
                 return f"error: {message}"
+            case events.Looked(passes=passes, p_value=p, threshold=threshold, ruled_out=bound, verdict=verdict):
+                evidence = f"smallest p {fmt.p_value(p)} (stops at {fmt.p_value(threshold)})"
+                bias = "no bound yet" if bound is None else f"a bias beyond {fmt.percent(bound).lstrip('+')} ruled out"
+                state = verdict if verdict is not None else f"{event.left} looks left"
+                return f"{label}: {passes} passes a side, {fmt.duration(event.seconds)}: {evidence}; {bias}; {state}"
+            case events.Saved(out=out, passes=passes):
+                return f"{label}: saved {passes} passes in {out}"
             case events.Finished(out=out, passes=passes):
                 return f"{label}: {passes} passes in {out}"
         raise TypeError(f"not a progress event: {event!r}")

@@ -160,7 +160,9 @@ def _effect_figure(plt, path: Path, result: wc.Comparison) -> str:
 def _html(report: dict) -> str:
     esc = html.escape
     files = report["files"]
-    colour = {"biased": "#b00020", "no_evidence": "#1b7f3b", "inconclusive": "#a06000"}[report["verdict"]]
+    colour = {"biased": "#b00020", "equivalent": "#1b7f3b", "no_evidence": "#1b7f3b", "inconclusive": "#a06000"}[
+        report["verdict"]
+    ]
     rows = "".join(
         f"<tr><td>{t['x']},{t['y']}</td><td>{t['channel']}</td><td>{fmt.p_value(t['pvalue'])}</td>"
         f"<td>{fmt.p_value(t['qvalue'])}</td><td>{'yes' if t['significant'] else 'no'}</td>"

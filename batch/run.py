@@ -10,7 +10,7 @@ import os
 import signal
 import time
 
-from . import render
+from . import events, render
 from ._siblings import welch_core as wc
 from .errors import BatchError
 from .job import RenderJob
@@ -87,8 +87,13 @@ def _start_stats(job: RenderJob, scene, info: wc.RunInfo) -> wc.TileStats:
     return stats
 
 
-def render_run(job: RenderJob, progress: Progress) -> wc.TileStats:
-    """Render every seed of `job` not yet in its statistics file, checkpointing as it goes."""
+def render_run(job: RenderJob, progress: Progress, requests=None) -> wc.TileStats:
+    """Render every seed of `job` not yet in its statistics file, checkpointing as it goes.
+
+    With `requests` (an iterable of pass counts, e.g. lines of stdin for ``render --serve``), the seeds are
+    rendered in chunks of those sizes, in order, the statistics saved after each chunk (a `Saved` event tells
+    the caller), until the requests end or the seeds run out: the scene stays loaded between chunks.
+    """
     out_dir = os.path.dirname(os.path.abspath(job.out))
     if not os.access(out_dir, os.W_OK):
         raise RunError(f"can't write into {out_dir}: the folder is missing or not writable")
@@ -99,9 +104,27 @@ def render_run(job: RenderJob, progress: Progress) -> wc.TileStats:
         todo = [seed for seed in job.seeds if seed not in done]
         progress.start(len(job.seeds) - len(todo), job.out)
         with render.PassRenderer(scene) as renderer, StopRequest() as stop:
-            render_passes(renderer, todo, stats, progress, job.on_nan, job.out, job.checkpoint_every, stop)
+            if requests is None:
+                render_passes(renderer, todo, stats, progress, job.on_nan, job.out, job.checkpoint_every, stop)
+            else:
+                for count in requests:
+                    chunk, todo = todo[: max(count, 0)], todo[max(count, 0) :]
+                    render_passes(renderer, chunk, stats, progress, job.on_nan, job.out, len(chunk) + 1, stop)
+                    wc.save_stats(job.out, stats)
+                    progress.emit(events.Saved(out=job.out, passes=stats.n))
+                    if not todo:
+                        break
     progress.finished(job.out, stats.n)
     return stats
+
+
+def chunk_requests(stream):
+    """Pass counts, one per line of `stream` (``render --serve``); anything that is not a count ends the run."""
+    for line in stream:
+        try:
+            yield int(line)
+        except ValueError:
+            return
 
 
 def render_passes(

@@ -252,8 +252,42 @@ def warnings(summary: dict[str, Any]) -> list[str]:
     return out
 
 
+def check_summary(comparison, ref, test, look, verdict, job, looks: list[dict]) -> dict[str, Any]:
+    """The summary of a `check`: the comparison of the final data (maps, tiles, effects) under the verdict of the
+    sequential design, with the design and every look. The fixed-sample global p-value is left out: after looks
+    it is not a valid p-value."""
+    summary = summarize(comparison, ref, test, "reference", "test")
+    summary.update(
+        verdict=verdict.label,
+        verdict_text=verdict.text,
+        p_value=None,
+        check={
+            "max_passes": looks[-1]["passes"] if not looks else round(looks[-1]["passes"] / looks[-1]["fraction"]),
+            "max_seconds": job.max_seconds,
+            "tolerance": job.tolerance,
+            "paired": job.paired,
+            "spending": "pocock",
+            "passes": look.passes,
+            "looks": looks,
+            "stopped": "decided" if look.verdict is not None else "budget spent",
+            "ruled_out": _num(look.ruled_out),
+            "ruled_out_tile": look.ruled_out_tile,
+        },
+    )
+    summary["warnings"] = warnings(summary)
+    return summary
+
+
 def verdict_line(summary: dict[str, Any]) -> str:
     """One line for the terminal: the verdict, alpha, the global p and the test."""
+    check = summary.get("check")
+    if check is not None:
+        looks = check["looks"]
+        seconds = looks[-1]["seconds"] if looks else 0.0
+        return (
+            f"verdict: {summary['verdict_text']} (alpha {summary['alpha']:g}, {summary['test']} test, after "
+            f"{len(looks)} looks at {check['passes']} passes a side, {fmt.duration(seconds)} of rendering)"
+        )
     return (
         f"verdict: {summary['verdict_text']} (alpha {summary['alpha']:g}, global p {fmt.p_is(summary['p_value'])}, "
         f"{summary['test']} test, {summary['tiles']['used']} of {summary['tiles']['total']} tiles used, "
@@ -269,7 +303,25 @@ def console_lines(summary: dict[str, Any]) -> list[str]:
         lines.append(
             f"a tile with a bias of {detectable:.1%} (median over tiles) would have been found with 80 % power"
         )
-    equivalence = equivalence_sentence(summary)
+    check = summary.get("check")
+    if check is not None and check["stopped"] == "budget spent":
+        bound = check["ruled_out"]
+        lines.append(
+            "the budget is spent before a decision: "
+            + (
+                f"a bias beyond {fmt.percent(bound).lstrip('+')} is ruled out in every {check['ruled_out_tile']}x"
+                f"{check['ruled_out_tile']} tile; render more passes (--max-passes) to decide"
+                if bound is not None
+                else "no tile size bounds the difference yet; render more passes (--max-passes) to decide"
+            )
+        )
+    if check is not None and summary["verdict"] == wc.Verdict.EQUIVALENT:
+        tile, bound = check["ruled_out_tile"], check["ruled_out"]
+        lines.append(
+            f"the test converges to the reference within ±{fmt.percent(check['tolerance']).lstrip('+')} in every "
+            f"{tile}x{tile} tile (a bias beyond {fmt.percent(bound).lstrip('+')} is ruled out)"
+        )
+    equivalence = equivalence_sentence(summary) if check is None else None
     if equivalence is not None:
         lines.append(equivalence)
     lines += [f"note: {note}" for note in summary["notes"]]

@@ -20,6 +20,9 @@ EVERY_EVENT = [
     events.PassDone(done=8, total=8, seed=7, seconds=0.5, eta=None),
     events.Warned(message="pass with seed 3 has 2 non-finite pixel values: skipped"),
     events.Failed(message="--set cycles.nope=1: 'CyclesRenderSettings' has no property 'nope'"),
+    events.Saved(out="runs/ref.npz", passes=5),
+    events.Looked(passes=9, p_value=0.0049, threshold=1.7e-06, ruled_out=0.0076, verdict=None, left=28, seconds=0.7),
+    events.Looked(passes=11, p_value=1e-9, threshold=1.7e-06, ruled_out=None, verdict="biased", left=27, seconds=0.8),
     events.Finished(out="runs/ref.npz", passes=8),
 ]
 
@@ -78,7 +81,7 @@ def test_progress_lines_for_people_and_programs():
             assert out.getvalue() == ""
             assert err.getvalue().splitlines() == [
                 "reference: 3 of 4 passes to render into ref.npz",
-                "reference: pass 2/4 (seed 7) 0.50 s, ETA 1 s",
+                "reference: pass 2/4 (seed 7) 0.50 s, ETA 1.0 s",
                 "warning: careful",
                 "reference: 4 passes in ref.npz",
             ]

@@ -1,0 +1,108 @@
+"""``python -m batch check`` with real Cycles renders (bpy module): render until decided, resume after Ctrl-C,
+bad input refused before anything renders."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import welch_core as wc
+from batch import events
+from batch.scenes import WALL_COLOR_PATH
+
+ROOT = Path(__file__).resolve().parents[1]
+SMALL = ("--scene", "corner", "--resolution", 64, 64)
+
+
+def check(*args, expect=None) -> subprocess.CompletedProcess:
+    done = subprocess.run([sys.executable, "-m", "batch", "check", *map(str, args)], capture_output=True, text=True)
+    if expect is not None:
+        assert done.returncode == expect, done.stdout[-2000:] + done.stderr[-2000:]
+    return done
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--tolerance", "1"], "argument --tolerance: must be a percentage such as 0.5%, got '1'"),
+        (["--tolerance", "abc%"], "argument --tolerance: must be a percentage such as 0.5%, got 'abc%'"),
+        (["--unpaired", "--max-passes", "1"], "error: --max-passes must be at least 2, got 1"),
+        (["--unpaired", "--max-seconds", "0"], "error: --max-seconds must be a positive number of seconds, got 0"),
+        (["--test-blend", "missing.blend"], "error: --test-blend missing.blend: no such file"),
+        (
+            [],
+            "error: the two sides are identical by construction (same scene, build, settings and seeds): every "
+            "difference would be zero; give --set, --test-blend or --test-blender, or --unpaired for an A/A check",
+        ),
+    ],
+)
+def test_bad_input_is_refused_before_anything_renders(tmp_path, args, message):
+    done = check(*SMALL, *args, "--out", tmp_path / "check", expect=2)
+    assert message in done.stderr and len(done.stderr.splitlines()) == 1
+    assert not (tmp_path / "check").exists()
+
+
+@pytest.mark.slow
+def test_a_planted_bias_stops_early_as_biased(tmp_path):
+    """Walls 0.21 instead of 0.2 (the paper's Fig. 16), paired: found within a few passes."""
+    grey = f"{WALL_COLOR_PATH}=0.21,0.21,0.21,1"
+    done = check(*SMALL, "--set", grey, "--json-progress", "--out", tmp_path, expect=1)
+    looks = [e for e in map(events.parse, done.stdout.splitlines()) if isinstance(e, events.Looked)]
+    assert looks[-1].verdict == "biased" and looks[-1].passes <= 8
+    assert all(look.verdict is None for look in looks[:-1])
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert report["verdict"] == "biased" and report["test"] == "paired" and report["p_value"] is None
+    assert report["check"]["stopped"] == "decided" and len(report["check"]["looks"]) == len(looks)
+    assert report["top_tiles"][0]["rel_diff"] > 0.02
+
+
+@pytest.mark.slow
+def test_an_aa_check_ends_equivalent_without_choosing_n(tmp_path):
+    done = check(*SMALL, "--unpaired", "--out", tmp_path, expect=0)
+    assert done.stdout.startswith("verdict: equivalent within the tolerance (alpha 0.01, welch test, after ")
+    assert "the test converges to the reference within ±1.00 % in every" in done.stdout
+    state = json.loads((tmp_path / "check.json").read_text())
+    assert state["looks"][-1]["verdict"] == "equivalent" and state["looks"][-1]["passes"] < 512
+
+
+@pytest.mark.slow
+def test_the_budget_ends_inconclusive_with_the_bias_it_rules_out(tmp_path):
+    done = check(*SMALL, "--unpaired", "--tolerance", "0.01%", "--max-passes", 6, "--out", tmp_path, expect=3)
+    assert "verdict: inconclusive" in done.stdout
+    assert "the budget is spent before a decision: a bias beyond " in done.stdout
+    assert wc.load_stats(tmp_path / "reference.npz").n == 6
+
+
+@pytest.mark.slow
+def test_ctrl_c_keeps_everything_and_resume_continues(tmp_path):
+    args = [sys.executable, "-m", "batch", "check", *map(str, SMALL), "--unpaired", "--tolerance", "0.05%",
+            "--max-passes", "200", "--json-progress", "--out", str(tmp_path)]  # fmt: skip
+    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    seen = 0
+    for line in proc.stdout:
+        if isinstance(events.parse(line), events.Looked):
+            seen += 1
+            if seen == 4:
+                break
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    before = json.loads((tmp_path / "check.json").read_text())["looks"]
+    assert len(before) >= 4
+    done = check(*SMALL, "--unpaired", "--tolerance", "0.05%", "--max-passes", 200, "--out", tmp_path)
+    assert done.returncode == 2 and "already exists: pass --resume" in done.stderr
+    done = check(*SMALL, "--unpaired", "--tolerance", "0.05%", "--max-passes", 100, "--resume", "--out", tmp_path)
+    assert done.returncode == 2
+    assert "can't resume" in done.stderr and "other arguments" in done.stderr
+    done = check(*SMALL, "--unpaired", "--tolerance", "0.05%", "--max-passes", 200, "--resume", "--out", tmp_path)
+    assert done.returncode in (0, 3), done.stderr
+    after = json.loads((tmp_path / "check.json").read_text())["looks"]
+    assert after[: len(before)] == before  # the earlier looks stand, their boundaries are recomputed alike
+    assert after[-1]["passes"] > before[-1]["passes"]
+    ref, test = wc.load_stats(tmp_path / "reference.npz"), wc.load_stats(tmp_path / "test.npz")
+    assert set(ref.seeds).isdisjoint(test.seeds) and len(set(ref.seeds)) == ref.n
