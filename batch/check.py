@@ -24,6 +24,7 @@ from ._siblings import welch_core as wc
 from .errors import BatchError
 from .job import RenderJob
 from .launch import JobProcess, job_command
+from .progress import Progress
 
 STATE_FILE = "check.json"
 STATE_VERSION = 1
@@ -81,6 +82,7 @@ class _Side:
     job: RenderJob
     process: JobProcess | None = None
     passes: int = 0
+    progress: Progress | None = None  # its live line, on a terminal
 
 
 class Check:
@@ -90,6 +92,9 @@ class Check:
         self.job = job
         self.progress = progress
         self.sides = [_Side("reference", job.reference), _Side("test", job.test)]
+        if progress.live:
+            for side in self.sides:
+                side.progress = Progress(len(side.job.seeds), label=side.name, live=True)
         self.looks: list[dict] = []
         self.plan = job.plan(job.max_passes) if job.max_passes else None
         self.render_seconds = 0.0
@@ -183,13 +188,16 @@ class Check:
         self.render_seconds += time.perf_counter() - start
 
     def _relay(self, side: _Side) -> int | None:
-        """Show the side's events; the pass count of its last `Saved` event, if any arrived."""
+        """Show the side's events (its passes on its own live line, where there is a terminal); the pass count of
+        its last `Saved` event, if any arrived."""
         saved = None
         for event in side.process.drain():
             if isinstance(event, events.Saved):
                 saved = event.passes
             elif isinstance(event, events.Warned):
                 self.progress.warning(f"{side.name}: {event.message}")
+            elif side.progress is not None and isinstance(event, events.Started | events.PassDone):
+                side.progress.emit(event)
         return saved
 
     def _failed(self, side: _Side, code: int) -> None:

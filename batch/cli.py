@@ -195,6 +195,12 @@ def build_parser() -> argparse.ArgumentParser:
             help="test only this tile size (a multiple of the stored one); default: the stored size and every "
             "multiple 2x, 4x, ... that fits the image",
         )
+        c.add_argument(
+            "--full-maps",
+            action="store_true",
+            help="also write the p-value map and its overlay on the mean render as PNG at the image's resolution "
+            "(pvalue_map.png, overlay.png)",
+        )
         if name == "compare":
             kind = c.add_mutually_exclusive_group()
             kind.add_argument(
@@ -385,7 +391,7 @@ def _write_and_print(args, ref, test, result, ref_name: str, test_name: str) -> 
     from .report import write_report
 
     summary = summaries.summarize(result, ref, test, ref_name, test_name)
-    write_report(args.out, summary, result, ref, test)
+    write_report(args.out, summary, result, ref, test, full_maps=args.full_maps)
     print(summaries.verdict_line(summary))
     for line in summaries.console_lines(summary):
         print(f"  {line}")

@@ -1,6 +1,9 @@
-"""Progress of a job for people (a line per event on stderr) or programs (`batch.events` as JSON lines on stdout).
+"""Progress of a job for people or programs.
 
-A reader that goes away (``--json-progress | head -1``) does not stop the job: output stops, work goes on.
+For programs (``--json-progress``): every `batch.events` event as one JSON line on stdout. For people: on a
+terminal one live line per job (tqdm: passes done, passes per second, time left, and for ``check`` the current
+evidence), with warnings and errors printed above it; elsewhere (a log file, a pipe) a plain line per event on
+stderr. A reader that goes away (``--json-progress | head -1``) does not stop the job: output stops, work goes on.
 """
 
 from __future__ import annotations
@@ -16,24 +19,60 @@ ETA_WINDOW = 16
 class Progress:
     """Reports a job's events; `start`, `pass_done`, `warning`, `error` and `finished` make the events."""
 
-    def __init__(self, total: int, json_lines: bool = False, label: str = "render"):
+    def __init__(self, total: int, json_lines: bool = False, label: str = "render", live: bool | None = None):
         self.total = total
         self.json_lines = json_lines
         self.label = label
         self.done = 0
         self._times: list[float] = []
         self._silent = False
+        # A live line only where someone watches a terminal; `live` overrides the guess (tests).
+        self.live = (not json_lines and sys.stderr.isatty()) if live is None else live
+        self._bar = None
 
     def emit(self, event: events.Event) -> None:
-        """Write one event: a JSON line on stdout, or a line for people on stderr."""
+        """Write one event: a JSON line on stdout, the live line, or a line for people on stderr."""
         if self._silent:
             return
-        stream = sys.stdout if self.json_lines else sys.stderr
-        text = events.to_line(event) if self.json_lines else self.describe(event)
         try:
-            print(text, file=stream, flush=True)
+            if self.json_lines:
+                print(events.to_line(event), flush=True)
+            elif self.live:
+                self._show(event)
+            else:
+                print(self.describe(event), file=sys.stderr, flush=True)
         except BrokenPipeError:
             self._silent = True  # nobody reads any more; the job itself goes on
+
+    def _show(self, event: events.Event) -> None:
+        from tqdm import tqdm  # only for a terminal
+
+        match event:
+            case events.Started(total=total, todo=todo):
+                self._bar = tqdm(total=total, initial=total - todo, desc=self.label, unit="pass", file=sys.stderr,
+                                 dynamic_ncols=True, leave=True)  # fmt: skip
+            case events.PassDone(done=done):
+                if self._bar is not None:
+                    self._bar.update(done - self._bar.n)
+            case events.Looked(verdict=verdict):
+                if self._bar is None:
+                    self._bar = tqdm(desc=self.label, unit="look", file=sys.stderr, dynamic_ncols=True, leave=True)
+                self._bar.update(1)
+                self._bar.set_postfix_str(self.describe(event).partition(": ")[2], refresh=True)
+                if verdict is not None:
+                    self._close()
+            case events.Finished():
+                self._close()
+                tqdm.write(self.describe(event), file=sys.stderr)
+            case events.Saved():
+                pass
+            case _:
+                tqdm.write(self.describe(event), file=sys.stderr)
+
+    def _close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
 
     def describe(self, event: events.Event) -> str:
         label = self.label
@@ -72,6 +111,7 @@ class Progress:
         self.emit(events.Warned(message=message))
 
     def error(self, message: str) -> None:
+        self._close()
         self.emit(events.Failed(message=message))
 
     def finished(self, out: str, passes: int) -> None:

@@ -79,7 +79,68 @@ def summarize(
         "dropped_pixels": ref.dropped_pixels,
     }
     summary["warnings"] = warnings(summary)
+    summary["uncovered_region"] = _region(c.uncovered, c.tile) if c.uncovered is not None else None
+    summary["next_step"] = next_step(summary)
     return summary
+
+
+def _region(mask: np.ndarray, tile: int) -> dict[str, int] | None:
+    """The pixel box around the tiles of `mask` (x, y, width, height), or None if there are none."""
+    rows, cols = np.nonzero(mask)
+    if rows.size == 0:
+        return None
+    return {
+        "x": int(cols.min() * tile),
+        "y": int(rows.min() * tile),
+        "width": int((cols.max() - cols.min() + 1) * tile),
+        "height": int((rows.max() - rows.min() + 1) * tile),
+    }
+
+
+def next_step(summary: dict[str, Any]) -> str:
+    """What to do with this verdict, in a sentence or two."""
+    verdict = wc.Verdict(summary["verdict"])
+    n_ref, n_test = summary["n_ref"], summary["n_test"]
+    more = (
+        f"render more passes into both runs (the same render commands with --resume and seeds after the "
+        f"{n_ref} and {n_test} used), then compare again, or let `python -m batch check` render until it decides"
+    )
+    if verdict == wc.Verdict.BIASED:
+        top = summary["top_tiles"][0] if summary["top_tiles"] else None
+        where = (
+            f" The strongest difference is at x {top['x']}, y {top['y']} ({top['size']} px tile), "
+            f"{fmt.percent(top['rel_diff'])} in {top['channel']}."
+            if top
+            else ""
+        )
+        return (
+            "The two do not converge to the same image." + where + " Look at the recorded differences and the tiles "
+            "outlined in the map; a difference you expected (a setting changed on purpose) confirms the test works."
+        )
+    if verdict == wc.Verdict.EQUIVALENT:
+        return "Nothing to do: the difference is bounded within the tolerance in every tested tile."
+    if verdict == wc.Verdict.INCONCLUSIVE:
+        region = summary.get("uncovered_region")
+        if summary["tiles"]["valid"] == 0:
+            return "No tile could be tested (too few passes, or constant images): " + more + "."
+        if region:
+            x, y = region["x"], region["y"]
+            where = f"the region x {x}..{x + region['width']}, y {y}..{y + region['height']}"
+        else:
+            where = "too much of the image"
+        return (
+            f"The Welch samples of {where} are clearly not normal (fireflies or caustics) at every tile size, so "
+            f"that part can't be tested yet: more samples per pass (--spp) make each pass's tile sums more normal; "
+            f"or {more}."
+        )
+    detectable = summary["median_min_detectable_rel_bias"]
+    smaller = (
+        f"a bias below {fmt.percent(detectable).lstrip('+')} per tile" if detectable is not None else "a small bias"
+    )
+    return (
+        f"No bias was found, but {smaller} could still hide: to rule it out, {more}; with --tolerance the verdict "
+        "says whether the two are equivalent within it."
+    )
 
 
 def method_sentence(c: wc.Comparison) -> str:
@@ -231,7 +292,8 @@ def reference_selftest(ref: wc.TileStats, alpha: float) -> dict[str, Any] | None
     compared; None when the reference has fewer than 4 passes."""
     if ref.n < 4:
         return None
-    check = wc.compare(*wc.split_halves(ref), alpha=alpha, test_kind="welch")
+    # The stored tile size only: the finest tiles are where a miscalibration shows first, at half the cost.
+    check = wc.compare(*wc.split_halves(ref), alpha=alpha, test_kind="welch", tile=ref.tile)
     return {
         "verdict": check.verdict.label,
         "p_value": _num(check.p_value),

@@ -142,9 +142,22 @@ def test_compare_unbiased_biased_and_reports(tmp_path, capsys):
     for name in report["files"].values():
         assert (tmp_path / "ab" / name).stat().st_size > 0
     html = (tmp_path / "ab" / "report.html").read_text()
-    assert "biased" in html and "histogram.png" in html
+    assert "<title>Bias test: biased</title>" in html and "P-value histogram" in html
     pmap = wc.read_exr(tmp_path / "ab" / "pvalues.exr")
     assert pmap.shape == (4, 6, 3)
+
+
+def test_full_maps_on_request(tmp_path):
+    ref = ingest(tmp_path, "ref", range(0, 8))
+    test = ingest(tmp_path, "test", range(100, 108))
+    assert cli.main(["compare", ref, test, "--out", str(tmp_path / "r"), "--full-maps"]) == cli.EXIT_OK
+    files = json.loads((tmp_path / "r" / "report.json").read_text())["files"]
+    assert files == {"pvalues_exr": "pvalues.exr", "html": "report.html", "pvalue_map_png": "pvalue_map.png",
+                     "overlay_png": "overlay.png"}  # fmt: skip
+    for name in files.values():
+        assert (tmp_path / "r" / name).stat().st_size > 0
+    assert cli.main(["selftest", ref, "--out", str(tmp_path / "s")]) == cli.EXIT_OK
+    assert not (tmp_path / "s" / "overlay.png").exists()
 
 
 def test_paired_is_chosen_for_identical_seeds(tmp_path):

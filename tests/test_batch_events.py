@@ -102,3 +102,24 @@ def test_a_reader_that_goes_away_does_not_stop_the_job():
     _, err = producer.communicate(timeout=60)
     assert events.parse(first.decode()) is not None
     assert producer.returncode == 0 and err.decode() == "finished\n"
+
+
+def test_a_terminal_gets_one_live_line(capsys):
+    progress = Progress(4, label="reference", live=True)
+    progress.start(0, "ref.npz")
+    for seed in range(3):
+        progress.pass_done(seed, 0.01)
+    progress.warning("careful")
+    progress.finished("ref.npz", 4)
+    err = capsys.readouterr().err
+    assert "reference:" in err and "3/4" in err and "pass/s" in err  # tqdm's line: done, total, rate
+    assert "warning: careful" in err and "reference: 4 passes in ref.npz" in err
+    assert "pass 1/4 (seed 0)" not in err  # no line per pass
+
+
+def test_a_check_on_a_terminal_shows_the_evidence_on_its_line(capsys):
+    progress = Progress(0, label="check", live=True)
+    progress.emit(events.Looked(passes=9, p_value=0.0049, threshold=1.7e-06, ruled_out=0.0076, verdict=None,
+                                left=28, seconds=0.7))  # fmt: skip
+    err = capsys.readouterr().err
+    assert "smallest p 0.0049 (stops at 1.7e-06); a bias beyond 0.76 % ruled out; 28 looks left" in err

@@ -16,6 +16,8 @@ import importlib
 _EXPORTS = {
     "MAP_MODES": "colormap",
     "colorize": "colormap",
+    "exposure": "colormap",
+    "shrink": "colormap",
     "histogram": "colormap",
     "map_values": "colormap",
     "overlay": "colormap",
@@ -67,7 +69,7 @@ _EXPORTS = {
     "Verdict": "verdict",
 }
 
-_SUBMODULES = frozenset(_EXPORTS.values()) | {"sequential"}
+_SUBMODULES = frozenset(_EXPORTS.values()) | {"png", "sequential"}
 
 __all__ = sorted(_EXPORTS)
 

@@ -15,10 +15,12 @@ from .errors import WelchInputError
 __all__ = [
     "MAP_MODES",
     "colorize",
+    "exposure",
     "histogram",
     "map_values",
     "overlay",
     "pvalue_rgb",
+    "shrink",
     "tonemap",
     "upscale_tiles",
 ]
@@ -122,16 +124,38 @@ def upscale_tiles(tiles: npt.ArrayLike, tile: int, height: int, width: int, fill
     return out
 
 
-def tonemap(image: npt.ArrayLike, key: float = 0.18) -> np.ndarray:
-    """Display an HDR scene-linear image: exposure so the mean luminance is `key`, Reinhard, sRGB encoding."""
-    img = np.nan_to_num(np.asarray(image, dtype=np.float64)[..., :3], nan=0.0, posinf=0.0, neginf=0.0)
-    img = np.maximum(img, 0.0)
-    luminance = img @ np.array([0.2126, 0.7152, 0.0722])
-    mean = luminance.mean() if luminance.size else 0.0
-    scaled = img * (key / mean) if mean > 0 else img
-    mapped = scaled / (1.0 + scaled)
-    srgb = np.where(mapped <= 0.0031308, 12.92 * mapped, 1.055 * mapped ** (1 / 2.4) - 0.055)
-    return srgb.astype(np.float32)
+def exposure(image: npt.ArrayLike, key: float = 0.18) -> float:
+    """The scale that brings the mean luminance of a scene-linear image to `key` (1 for a black image)."""
+    img = np.nan_to_num(np.asarray(image, dtype=np.float32)[..., :3], nan=0.0, posinf=0.0, neginf=0.0)
+    mean = float((np.maximum(img, 0.0) @ np.array([0.2126, 0.7152, 0.0722], np.float32)).mean()) if img.size else 0.0
+    return key / mean if mean > 0 else 1.0
+
+
+def tonemap(image: npt.ArrayLike, key: float = 0.18, scale: float | None = None) -> np.ndarray:
+    """Display an HDR scene-linear image: exposure so the mean luminance is `key` (or the given `scale`, so that
+    two images compare in brightness), Reinhard, sRGB encoding."""
+    img = np.nan_to_num(np.asarray(image, dtype=np.float32)[..., :3], nan=0.0, posinf=0.0, neginf=0.0)
+    img = np.maximum(img, np.float32(0.0))
+    scaled = img * np.float32(exposure(img, key) if scale is None else scale)
+    mapped = scaled / (np.float32(1.0) + scaled)
+    return np.where(mapped <= 0.0031308, 12.92 * mapped, 1.055 * mapped ** np.float32(1 / 2.4) - 0.055).astype(
+        np.float32
+    )
+
+
+def shrink(image: npt.ArrayLike, max_side: int) -> np.ndarray:
+    """Block means that bring the longer side to at most `max_side` (an integer factor; the edge that does not
+    fill a block is dropped): a picture for a report, not for measurement."""
+    img = np.asarray(image)
+    factor = -(-max(img.shape[:2]) // max_side)
+    if factor <= 1:
+        return img
+    h, w = img.shape[0] // factor * factor, img.shape[1] // factor * factor
+    rest = img.shape[2:]
+    # Rows first with a contiguous inner axis, then columns: near memory speed, unlike a mean over two axes.
+    rows = img[:h].reshape(h // factor, factor, img.shape[1], *rest).sum(axis=1, dtype=np.float32)[:, :w]
+    blocks = rows.reshape(h // factor, w // factor, factor, *rest).sum(axis=2)
+    return blocks / np.float32(factor * factor)
 
 
 def overlay(base_rgb: npt.ArrayLike, map_rgb: npt.ArrayLike, opacity: float, mask: npt.ArrayLike | None = None):

@@ -17,6 +17,7 @@ samples clearly not normal); else ``no_evidence``.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -96,7 +97,7 @@ class Comparison:
     trusted: np.ndarray  # tiles whose Welch samples pass the normality check (or were too few to check)
     normality_checked: bool  # False when a side has fewer than MIN_PASSES_FOR_NORMALITY passes
     global_test: GlobalTest
-    effect: Effect
+    ref_mean: np.ndarray  # the reference's tile means, the scale of relative differences
     n_ref: int
     n_test: int
     width: int
@@ -107,6 +108,12 @@ class Comparison:
     #: base tiles that could be tested at no scale (all-constant tiles excluded); None for a single scale
     uncovered: np.ndarray | None = None
     equivalence: Equivalence | None = None
+
+    @functools.cached_property
+    def effect(self) -> Effect:
+        """Relative differences with intervals and the minimum detectable bias (computed when first asked for:
+        the t quantiles are most of a comparison's cost)."""
+        return effect_sizes(self.result, self.ref_mean, self.alpha, int(self.used.sum()))
 
     @property
     def pvalues(self) -> np.ndarray:
@@ -330,7 +337,6 @@ def _decide(ref, test, tested: TileTest, pvalue_method, alpha) -> Comparison:
     trusted = ~suspect.any(axis=-1)
     used = np.isfinite(tile_p) & trusted
     glob = global_test(np.where(used, tile_p, np.nan), alpha)
-    effect = effect_sizes(result, ref.mean, alpha, int(used.sum()))
     untrusted = int((np.isfinite(tile_p) & ~trusted).sum())
     p_value = glob.pvalue
     if (result.reason == Reason.DETERMINISTIC_DIFFERENCE).any():
@@ -354,7 +360,7 @@ def _decide(ref, test, tested: TileTest, pvalue_method, alpha) -> Comparison:
         trusted=trusted,
         normality_checked=tested.checked,
         global_test=glob,
-        effect=effect,
+        ref_mean=ref.mean,
         n_ref=ref.n,
         n_test=test.n,
         width=ref.width,

@@ -230,12 +230,13 @@ class TileStats:
             raise WelchInputError(f"`sums` must have shape (n_seeds, {out.grid_shape}), got {sums.shape}")
         out._append(sums, seeds)
         if pixel_sum is not None:
+            adopt = isinstance(pixel_sum, np.ndarray) and pixel_sum.dtype == np.float32 and pixel_sum.flags.c_contiguous
             pixel_sum = np.asarray(pixel_sum, dtype=np.float32)
             if pixel_sum.shape != (height, width, out.channels):
                 raise WelchInputError(
                     f"`pixel_sum` must have shape {(height, width, out.channels)}, got {pixel_sum.shape}"
                 )
-            out._pixel_sum = pixel_sum.copy()
+            out._pixel_sum = pixel_sum if adopt else pixel_sum.copy()  # adopted like the sums: one copy in memory
         return out
 
     # -- shape of the grid ---------------------------------------------------------------------------------

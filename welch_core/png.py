@@ -1,0 +1,52 @@
+"""PNG images with numpy and zlib alone: the report's pictures, without an imaging library on the path.
+
+An 8-bit RGB or RGBA image is written as the PNG specification's simplest valid file: signature, IHDR, one IDAT
+with every row filtered by the "none" filter, IEND (W3C PNG, 2nd edition, sections 5 and 11).
+"""
+
+from __future__ import annotations
+
+import os
+import struct
+import zlib
+
+import numpy as np
+import numpy.typing as npt
+
+from .errors import WelchInputError
+
+__all__ = ["png_bytes", "to_uint8", "write_png"]
+
+_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def to_uint8(rgb: npt.ArrayLike) -> np.ndarray:
+    """Display values in [0, 1] (NaN as 0) to 8-bit, rounded."""
+    values = np.nan_to_num(np.asarray(rgb, dtype=np.float32), nan=0.0)
+    return (np.clip(values, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+
+
+def png_bytes(image: npt.ArrayLike, level: int = 6) -> bytes:
+    """The PNG file of an H×W×3 or H×W×4 uint8 image (top row first); `level` is zlib's compression level."""
+    img = np.asarray(image)
+    if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] not in (3, 4) or 0 in img.shape:
+        raise WelchInputError(f"`image` must be a non-empty H×W×3 or H×W×4 uint8 array, got {img.dtype} {img.shape}")
+    height, width, channels = img.shape
+    rows = np.empty((height, 1 + width * channels), np.uint8)
+    rows[:, 0] = 0  # filter type "none" for every scanline
+    rows[:, 1:] = img.reshape(height, width * channels)
+    header = struct.pack(">IIBBBBB", width, height, 8, 6 if channels == 4 else 2, 0, 0, 0)
+    data = zlib.compress(rows.tobytes(), level)
+    return b"".join((_SIGNATURE, _chunk(b"IHDR", header), _chunk(b"IDAT", data), _chunk(b"IEND", b"")))
+
+
+def write_png(path: str | os.PathLike, image: npt.ArrayLike) -> None:
+    """Write `image` (see `png_bytes`) atomically."""
+    from .formats import atomic_write  # the one way files are written
+
+    data = png_bytes(image)
+    atomic_write(path, lambda f: f.write(data))
+
+
+def _chunk(kind: bytes, data: bytes) -> bytes:
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
