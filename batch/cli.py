@@ -371,9 +371,11 @@ def _load_looks(job) -> list[dict]:
 
 
 def cmd_compare(args) -> int:
-    ref, test = wc.load_stats(args.ref), wc.load_stats(args.test)
+    # The pixel sums only where full-resolution maps are asked for; the page needs the stored previews alone.
+    ref, test = (wc.load_stats(path, pixels=args.full_maps) for path in (args.ref, args.test))
+    previews = None if args.full_maps else (wc.load_preview(args.ref), wc.load_preview(args.test))
     result = wc.compare(ref, test, args.alpha, args.kind, args.pvalue_method, args.tile, args.tolerance)
-    return _write_and_print(args, ref, test, result, args.ref, args.test)
+    return _write_and_print(args, ref, test, result, args.ref, args.test, previews)
 
 
 def cmd_selftest(args) -> int:
@@ -386,12 +388,12 @@ def cmd_selftest(args) -> int:
     return _write_and_print(args, first, second, result, f"{name} (even passes)", f"{name} (odd passes)")
 
 
-def _write_and_print(args, ref, test, result, ref_name: str, test_name: str) -> int:
+def _write_and_print(args, ref, test, result, ref_name: str, test_name: str, previews=None) -> int:
     from . import summary as summaries
     from .report import write_report
 
     summary = summaries.summarize(result, ref, test, ref_name, test_name)
-    write_report(args.out, summary, result, ref, test, full_maps=args.full_maps)
+    write_report(args.out, summary, result, ref, test, full_maps=args.full_maps, previews=previews)
     print(summaries.verdict_line(summary))
     for line in summaries.console_lines(summary):
         print(f"  {line}")

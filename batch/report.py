@@ -22,8 +22,9 @@ import numpy as np
 from . import fmt
 from ._siblings import welch_core as wc
 
-#: The longest side of the pictures in the page; tiles are drawn at their true place over them.
-DISPLAY_MAX = 1024
+#: The longest side of the pictures in the page (what statistics files store as their preview); tiles are drawn
+#: at their true place over them.
+DISPLAY_MAX = wc.formats.PREVIEW_SIDE
 
 #: Bins of the p-value histogram (the paper uses 30 and, at low sample counts, fewer: Fig. 16f).
 HISTOGRAM_BINS = 20
@@ -38,10 +39,12 @@ def write_report(
     ref: wc.TileStats,
     test: wc.TileStats,
     full_maps: bool = False,
+    previews: tuple[np.ndarray | None, np.ndarray | None] | None = None,
 ) -> dict:
     """Write the report of a comparison into `out_dir` (created if missing); return the report dict (the
     summary of `batch.summary.summarize` and the files written). `full_maps` also writes the p-value map and
-    the overlay at the image's resolution as PNG."""
+    the overlay at the image's resolution as PNG. `previews` are both sides' pixel sums shrunk to at most
+    `DISPLAY_MAX` a side (`welch_core.load_preview`), for runs loaded without their pixel sums."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = {"pvalues_exr": "pvalues.exr", "html": "report.html"}
@@ -50,7 +53,7 @@ def write_report(
         files |= _full_maps(out, result, test if test.mean_image is not None else ref)
     report = dict(summary, files=files)
     write_text(out / "report.json", json.dumps(report, indent=2, allow_nan=False))
-    write_text(out / "report.html", render_html(report, result, ref, test))
+    write_text(out / "report.html", render_html(report, result, ref, test, previews))
     return report
 
 
@@ -72,8 +75,8 @@ def _full_maps(out: Path, result: wc.Comparison, run: wc.TileStats) -> dict:
 # -- the page ------------------------------------------------------------------------------------------------
 
 
-def render_html(report: dict, result: wc.Comparison, ref: wc.TileStats, test: wc.TileStats) -> str:
-    data = {"summary": report, **_tile_data(result), **_pictures(result, ref, test)}
+def render_html(report: dict, result: wc.Comparison, ref: wc.TileStats, test: wc.TileStats, previews=None) -> str:
+    data = {"summary": report, **_tile_data(result), **_pictures(result, ref, test, previews)}
     text = json.dumps(data, allow_nan=False, separators=(",", ":")).replace("</", "<\\/")
     colour = {"biased": "#b00020", "inconclusive": "#a06000"}.get(report["verdict"], "#1b7f3b")
     replacements = {
@@ -152,13 +155,15 @@ def _tile_data(c: wc.Comparison) -> dict:
     }
 
 
-def _pictures(c: wc.Comparison, ref: wc.TileStats, test: wc.TileStats) -> dict:
+def _pictures(c: wc.Comparison, ref: wc.TileStats, test: wc.TileStats, previews=None) -> dict:
     """PNG data URLs of both sides' mean renders, with one exposure (the reference's) so brightness compares; the
     page draws their difference itself."""
+    if previews is None:
+        previews = [None if run.pixel_sum is None else wc.shrink(run.pixel_sum, DISPLAY_MAX) for run in (ref, test)]
     # The pixel sums shrunk, then divided: no full-size mean image is made.
     means = [
-        wc.shrink(run.pixel_sum, DISPLAY_MAX) / np.float32(run.n) if run.pixel_sum is not None and run.n else None
-        for run in (ref, test)
+        preview / np.float32(run.n) if preview is not None and run.n else None
+        for run, preview in zip((ref, test), previews, strict=True)
     ]
     known = [m for m in means if m is not None]
     if not known:
@@ -175,7 +180,7 @@ def _pictures(c: wc.Comparison, ref: wc.TileStats, test: wc.TileStats) -> dict:
 
 
 def _png(rgb: np.ndarray) -> str:
-    return "data:image/png;base64," + base64.b64encode(wc.png.png_bytes(wc.png.to_uint8(rgb), level=1)).decode()
+    return "data:image/png;base64," + base64.b64encode(wc.png.png_bytes(wc.png.to_uint8(rgb), fast=True)).decode()
 
 
 def histogram_svg(c: wc.Comparison, width: int = 420, height: int = 150) -> str:

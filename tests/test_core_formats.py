@@ -195,6 +195,60 @@ def test_load_truncated_file(tmp_path):
         load_stats(path)
 
 
+def test_large_arrays_are_read_directly_and_checked(tmp_path):
+    """Pixel sums of 1 MB and more are read straight into their array; a flipped bit is still found."""
+    path = tmp_path / "big.npz"
+    run = make_run(n=3, height=256, width=512, tile=64)
+    save_stats(path, run)
+    loaded = load_stats(path)
+    assert_array_equal(loaded.pixel_sum, run.pixel_sum)
+    assert loaded.pixel_sum.flags.c_contiguous and loaded.pixel_sum.flags.writeable
+    data = bytearray(path.read_bytes())
+    with zipfile.ZipFile(path) as archive:
+        info = archive.getinfo("pixel_sum.npy")
+    data[info.header_offset + 30 + len(info.filename) + 1000] ^= 4  # inside the pixel data
+    path.write_bytes(bytes(data))
+    with pytest.raises(StatsFileError, match=re.escape(f"{str(path)!r} is damaged: 'pixel_sum' does not match its "
+                                                       "checksum")):  # fmt: skip
+        load_stats(path)
+    path.write_bytes(bytes(data[: info.header_offset + 30 + len(info.filename) + 5000]))
+    with pytest.raises(StatsFileError, match=re.escape(f"{str(path)!r} is not a readable statistics file (")):
+        load_stats(path)
+
+
+def test_previews_of_large_images_are_stored_and_read_alone(tmp_path):
+    from welch_core import load_preview, shrink
+    from welch_core.formats import PREVIEW_SIDE
+
+    rng = np.random.default_rng(5)
+    big = TileStats.from_sums(rng.normal(size=(2, 2, 3, 3)), [1, 2], 600, 1100, 300,
+                              pixel_sum=rng.uniform(size=(600, 1100, 3)).astype(np.float32))  # fmt: skip
+    save_stats(tmp_path / "big.npz", big)
+    with zipfile.ZipFile(tmp_path / "big.npz") as archive:
+        assert "preview_sum.npy" in archive.namelist()
+    preview = load_preview(tmp_path / "big.npz")
+    assert preview.shape == (300, 550, 3) and PREVIEW_SIDE == 1024
+    assert_array_equal(preview, shrink(big.pixel_sum, PREVIEW_SIDE))
+    light = load_stats(tmp_path / "big.npz", pixels=False)
+    assert light.pixel_sum is None and light.seeds == [1, 2]
+    assert_array_equal(light.sums, big.sums)
+
+    small = make_run()  # no preview stored: the pixel sums are small enough to be their own
+    save_stats(tmp_path / "small.npz", small)
+    with zipfile.ZipFile(tmp_path / "small.npz") as archive:
+        assert "preview_sum.npy" not in archive.namelist()
+    assert_array_equal(load_preview(tmp_path / "small.npz"), small.pixel_sum)
+    save_stats(tmp_path / "bare.npz", TileStats.from_sums(big.sums, [1, 2], 600, 1100, 300))
+    assert load_preview(tmp_path / "bare.npz") is None
+
+    arrays = dict(np.load(tmp_path / "big.npz"))
+    arrays["preview_sum"] = arrays["preview_sum"][:-1]
+    np.savez(tmp_path / "bad.npz", **arrays)
+    message = f"{str(tmp_path / 'bad.npz')!r} is damaged: 'preview_sum' has shape (299, 550, 3), expected (300, 550, 3)"
+    with pytest.raises(StatsFileError, match=re.escape(message)):
+        load_preview(tmp_path / "bad.npz")
+
+
 def test_load_foreign_files(tmp_path):
     foreign = tmp_path / "foreign.npz"
     np.savez(foreign, image=np.zeros((4, 4)), labels=np.arange(3))

@@ -11,9 +11,10 @@ Image = pytest.importorskip("PIL.Image")
 
 
 @pytest.mark.parametrize("channels", [3, 4])
-def test_pillow_reads_back_every_pixel(channels):
+@pytest.mark.parametrize("fast", [False, True])
+def test_pillow_reads_back_every_pixel(channels, fast):
     image = np.random.default_rng(channels).integers(0, 256, (37, 53, channels), dtype=np.uint8)
-    back = np.asarray(Image.open(io.BytesIO(png_bytes(image))))
+    back = np.asarray(Image.open(io.BytesIO(png_bytes(image, fast=fast))))
     np.testing.assert_array_equal(back, image)
 
 

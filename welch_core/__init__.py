@@ -44,6 +44,7 @@ _EXPORTS = {
     "WelchInputError": "errors",
     "read_exr": "exr",
     "write_exr": "exr",
+    "load_preview": "formats",
     "load_stats": "formats",
     "save_stats": "formats",
     "GlobalTest": "multitest",

@@ -126,21 +126,32 @@ def upscale_tiles(tiles: npt.ArrayLike, tile: int, height: int, width: int, fill
 
 def exposure(image: npt.ArrayLike, key: float = 0.18) -> float:
     """The scale that brings the mean luminance of a scene-linear image to `key` (1 for a black image)."""
-    img = np.nan_to_num(np.asarray(image, dtype=np.float32)[..., :3], nan=0.0, posinf=0.0, neginf=0.0)
-    mean = float((np.maximum(img, 0.0) @ np.array([0.2126, 0.7152, 0.0722], np.float32)).mean()) if img.size else 0.0
+    img = _displayable(image)
+    mean = float((img @ np.array([0.2126, 0.7152, 0.0722], np.float32)).mean()) if img.size else 0.0
     return key / mean if mean > 0 else 1.0
+
+
+def _displayable(image: npt.ArrayLike) -> np.ndarray:
+    """RGB as float32 with negative, NaN and infinite values as 0 (a new array)."""
+    img = np.fmax(np.asarray(image, dtype=np.float32)[..., :3], np.float32(0.0))  # fmax: NaN becomes 0 too
+    img[img == np.inf] = 0.0
+    return img
 
 
 def tonemap(image: npt.ArrayLike, key: float = 0.18, scale: float | None = None) -> np.ndarray:
     """Display an HDR scene-linear image: exposure so the mean luminance is `key` (or the given `scale`, so that
     two images compare in brightness), Reinhard, sRGB encoding."""
-    img = np.nan_to_num(np.asarray(image, dtype=np.float32)[..., :3], nan=0.0, posinf=0.0, neginf=0.0)
-    img = np.maximum(img, np.float32(0.0))
-    scaled = img * np.float32(exposure(img, key) if scale is None else scale)
-    mapped = scaled / (np.float32(1.0) + scaled)
-    return np.where(mapped <= 0.0031308, 12.92 * mapped, 1.055 * mapped ** np.float32(1 / 2.4) - 0.055).astype(
-        np.float32
-    )
+    img = _displayable(image)
+    img *= np.float32(exposure(img, key) if scale is None else scale)
+    img /= np.float32(1.0) + img  # Reinhard
+    # sRGB encoding in place: the power on every value, the linear segment where it applies.
+    dark = img <= np.float32(0.0031308)
+    linear = img[dark] * np.float32(12.92)
+    np.power(img, np.float32(1 / 2.4), out=img)
+    img *= np.float32(1.055)
+    img -= np.float32(0.055)
+    img[dark] = linear
+    return img
 
 
 def shrink(image: npt.ArrayLike, max_side: int) -> np.ndarray:

@@ -317,8 +317,10 @@ def assess_scales(ref: TileStats, test: TileStats, kind: str, pvalue_method: str
     """Every scale tested and judged on its own: (the scales' comparisons, their tile tests, the finest tiles no
     scale can test). `compare` combines them into one verdict; the group-sequential `looks` use them too."""
     tests, scales = [], []
-    for f in scale_factors(ref, tile):  # one scale at a time: a coarser scale's sums are freed before the next
-        a, b = (ref, test) if f == 1 else (ref.retile(f), test.retile(f))
+    a, b, done = ref, test, 1
+    for f in scale_factors(ref, tile):  # one scale at a time: only the previous scale's sums are kept
+        if f != done:  # each scale from the one before (factors 1, 2, 4, ...): a quarter of the sums to add
+            a, b, done = a.retile(f // done), b.retile(f // done), f
         tests.append(test_tiles(a, b, kind, pvalue_method))
         scales.append(_decide(a, b, tests[-1], pvalue_method, alpha))
     return tuple(scales), tests, _uncovered(scales[0], scales)
