@@ -231,8 +231,11 @@ BENCHES = {"compare": bench_compare, "passes": bench_passes, "reseed": bench_res
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.speed", description=__doc__.splitlines()[0])
-    parser.add_argument("benches", nargs="*", choices=sorted(BENCHES), help="default: all")
+    parser.add_argument("benches", nargs="*", metavar="BENCH", help=f"some of {', '.join(BENCHES)} (default: all)")
     args = parser.parse_args(argv)
+    unknown = sorted(set(args.benches) - set(BENCHES))
+    if unknown:
+        parser.error(f"unknown benchmark {unknown[0]!r}; choose from {', '.join(BENCHES)}")
     for name in args.benches or list(BENCHES):
         BENCHES[name]()
     return 0
