@@ -47,6 +47,9 @@ class CheckJob:
     alpha: float = 0.01
     tolerance: float | None = 0.01
     resume: bool = False
+    #: The reference is a finished statistics file (a suite's blessed reference), not rendered: only the test
+    #: side renders, and the looks' information fractions count its passes against the reference's fixed ones.
+    fixed_reference: bool = False
 
     def plan(self, max_passes: int) -> wc.SequentialPlan:
         return wc.SequentialPlan(max_passes=max_passes, alpha=self.alpha, tolerance=self.tolerance)
@@ -83,6 +86,7 @@ class _Side:
     process: JobProcess | None = None
     passes: int = 0
     progress: Progress | None = None  # its live line, on a terminal
+    fixed: bool = False  # a finished statistics file: never rendered
 
 
 class Check:
@@ -91,7 +95,7 @@ class Check:
     def __init__(self, job: CheckJob, progress):
         self.job = job
         self.progress = progress
-        self.sides = [_Side("reference", job.reference), _Side("test", job.test)]
+        self.sides = [_Side("reference", job.reference, fixed=job.fixed_reference), _Side("test", job.test)]
         if progress.live:
             for side in self.sides:
                 side.progress = Progress(len(side.job.seeds), label=side.name, live=True)
@@ -144,9 +148,12 @@ class Check:
 
     def _start(self) -> None:
         for side in self.sides:
-            if Path(side.job.out).exists():  # resumed: the passes already in the file count
-                side.passes = wc.load_stats(side.job.out).n
-            side.process = JobProcess(job_command(side.job, serve=True), requests=True)
+            if Path(side.job.out).exists():  # resumed (or fixed): the passes already in the file count
+                side.passes = wc.load_stats(side.job.out, pixels=False).n
+            elif side.fixed:
+                raise BatchError(f"the reference {side.job.out} does not exist")
+            if not side.fixed:
+                side.process = JobProcess(job_command(side.job, serve=True), requests=True)
 
     def _stop(self) -> None:
         for side in self.sides:
@@ -168,7 +175,7 @@ class Check:
         """Both sides up to `passes` passes (at once: the sides share the machine, the chunk takes the longer)."""
         start = time.perf_counter()
         waiting = []
-        for side in self.sides:
+        for side in self._rendered():
             if side.passes < passes:
                 side.process.request(passes - side.passes)
                 waiting.append(side)
@@ -186,6 +193,13 @@ class Check:
             if waiting:
                 time.sleep(0.005)
         self.render_seconds += time.perf_counter() - start
+
+    def _rendered(self) -> list[_Side]:
+        return [side for side in self.sides if not side.fixed]
+
+    def _fraction(self, passes: int) -> float:
+        fixed = self.sides[0].passes if self.job.fixed_reference else None
+        return wc.looks.information_fraction(passes, self.plan.max_passes, fixed)
 
     def _relay(self, side: _Side) -> int | None:
         """Show the side's events (its passes on its own live line, where there is a terminal); the pass count of
@@ -217,11 +231,11 @@ class Check:
     def _fix_budget(self) -> None:
         """A time budget becomes a pass budget once the first chunk shows the speed (the looks' information
         fractions need it, and it must not change afterwards)."""
-        done = min(s.passes for s in self.sides)
+        done = min(s.passes for s in self._rendered())
         seconds_per_pass = self.render_seconds / max(done, 1)
         left = self.job.max_seconds - self.render_seconds
         passes = done + int(left / max(seconds_per_pass, 1e-9))
-        self.plan = self.job.plan(min(max(passes, wc.looks.FIRST_LOOK), len(self.job.reference.seeds)))
+        self.plan = self.job.plan(min(max(passes, wc.looks.FIRST_LOOK), len(self.job.test.seeds)))
 
     def run(self) -> tuple[wc.Look, wc.TileStats, wc.TileStats]:
         if self.job.resume:
@@ -239,7 +253,7 @@ class Check:
         return result
 
     def _loop(self):
-        done = max([look["passes"] for look in self.looks] + [min(s.passes for s in self.sides)])
+        done = max([look["passes"] for look in self.looks] + [min(s.passes for s in self._rendered())])
         if self.plan is None:
             self._render_to(wc.looks.FIRST_LOOK)
             self._fix_budget()
@@ -253,8 +267,8 @@ class Check:
                 break
             self._render_to(n)
             ref, test = self._load()
-            n = min(ref.n, test.n)
-            fractions.append(min(n / self.plan.max_passes, 1.0))
+            n = min(ref.n, test.n) if not self.job.fixed_reference else test.n
+            fractions.append(self._fraction(n))
             look = wc.sequential_look(ref, test, self.plan, fractions)
             self.looks.append(_look_record(look, self.render_seconds))
             self._save_state()

@@ -9,6 +9,7 @@ from scipy import stats
 
 from tests.synthetic import make_run, scene_means, tile_sum_samples
 from welch_core import SequentialPlan, TileStats, WelchInputError, compare, look_schedule, sequential_look
+from welch_core.looks import information_fraction
 
 
 def test_look_schedule():
@@ -32,17 +33,21 @@ def test_bad_plans(kwargs, message):
         SequentialPlan(**kwargs)
 
 
-def run_looks(ref_sums, test_sums, plan, ref_seeds=None, test_seeds=None):
-    """Every look of the schedule until a verdict: (the looks, the last one's verdict)."""
+def run_looks(ref_sums, test_sums, plan, ref_seeds=None, test_seeds=None, fixed_reference=False):
+    """Every look of the schedule until a verdict. With `fixed_reference`, all of `ref_sums` is the reference at
+    every look (a suite's blessed reference) and only the test side grows."""
     ty, tx = ref_sums.shape[1:3]
     ref_seeds = range(len(ref_sums)) if ref_seeds is None else ref_seeds
     test_seeds = range(1000, 1000 + len(test_sums)) if test_seeds is None else test_seeds
     schedule = look_schedule(plan.max_passes)
+    fixed = len(ref_sums) if fixed_reference else None
+    fractions = [information_fraction(n, plan.max_passes, fixed) for n in schedule]
     looks = []
     for k, n in enumerate(schedule):
-        ref = TileStats.from_sums(ref_sums[:n], list(ref_seeds)[:n], ty * 8, tx * 8, 8)
+        m = len(ref_sums) if fixed_reference else n
+        ref = TileStats.from_sums(ref_sums[:m], list(ref_seeds)[:m], ty * 8, tx * 8, 8)
         test = TileStats.from_sums(test_sums[:n], list(test_seeds)[:n], ty * 8, tx * 8, 8)
-        looks.append(sequential_look(ref, test, plan, np.array(schedule[: k + 1]) / plan.max_passes))
+        looks.append(sequential_look(ref, test, plan, fractions[: k + 1]))
         if looks[-1].verdict is not None:
             break
     return looks
@@ -113,6 +118,28 @@ def test_biased_is_calibrated_under_the_stopping_rule():
         )
     assert biased <= stats.binom.ppf(0.999, 2000, 0.05), biased
     assert naive > 2 * 0.05 * 2000, naive  # peeking without boundaries is not calibrated
+
+
+def test_information_fractions():
+    assert information_fraction(16, 64) == 0.25 and information_fraction(64, 64) == 1.0
+    # A fixed reference of 32 passes: 1/(1/32 + 1/16) against 1/(1/32 + 1/64), two thirds of the information.
+    assert information_fraction(16, 64, 32) == pytest.approx((1 / 32 + 1 / 64) / (1 / 32 + 1 / 16))
+    assert information_fraction(80, 64, 32) == 1.0
+
+
+@pytest.mark.slow
+def test_biased_is_calibrated_with_a_fixed_reference():
+    """A suite's case: a blessed reference of 32 passes, the test side looked at 20 times up to 64 passes, 2000
+    unbiased sequences as above (skewness 1, standard deviations 1:3): `biased` in at most alpha = 0.05 (limit
+    131). Measured: 98 of 2000 (4.9 %); with the reference the noisier side (3:1), 35 of 2000."""
+    rng = np.random.default_rng(20261203)
+    mean = rng.uniform(50.0, 150.0, size=(2, 2, 3))
+    plan = SequentialPlan(max_passes=64, alpha=0.05, tolerance=None)
+    biased = 0
+    for _ in range(2000):
+        ref_sums, test_sums = skewed_sequence(rng, 32, mean, 1.0), skewed_sequence(rng, 64, mean, 3.0)
+        biased += run_looks(ref_sums, test_sums, plan, fixed_reference=True)[-1].verdict == "biased"
+    assert biased <= stats.binom.ppf(0.999, 2000, 0.05), biased
 
 
 @pytest.mark.slow

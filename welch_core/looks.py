@@ -41,7 +41,15 @@ from .tiles import TileStats
 from .ttest import Reason, pvalue_exact
 from .verdict import Verdict
 
-__all__ = ["FIRST_LOOK", "LOOK_GROWTH", "Look", "SequentialPlan", "look_schedule", "sequential_look"]
+__all__ = [
+    "FIRST_LOOK",
+    "LOOK_GROWTH",
+    "Look",
+    "SequentialPlan",
+    "information_fraction",
+    "look_schedule",
+    "sequential_look",
+]
 
 #: The first look, in passes a side: two are the fewest with a variance.
 FIRST_LOOK = 2
@@ -77,6 +85,22 @@ def look_schedule(max_passes: int, first: int = FIRST_LOOK, growth: float = LOOK
         passes.append(n)
         n = max(n + 1, math.ceil(n * growth))
     return [*passes, max_passes]
+
+
+def information_fraction(passes: int, max_passes: int, reference_passes: int | None = None) -> float:
+    """The information of a look at `passes` (test side) relative to the last look's at `max_passes`.
+
+    Information is the inverse variance of a difference of means, 1 / (1/n_ref + 1/n_test) up to a constant:
+    n / max_passes when both sides grow together; with a fixed reference of `reference_passes` (a suite's blessed
+    reference), the early looks already hold the reference's share. Estimates of the difference at successive
+    looks then have Cov(d_j, d_k) = Var(d_k) for j < k either way, the structure the boundaries assume (Jennison
+    and Turnbull 2000, §3.1)."""
+
+    def information(n: int) -> float:
+        n_ref = n if reference_passes is None else reference_passes
+        return 1.0 / (1.0 / n_ref + 1.0 / n)
+
+    return min(information(passes) / information(max_passes), 1.0)
 
 
 @dataclass(frozen=True)
