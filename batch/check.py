@@ -304,9 +304,27 @@ def _json_default(value):
     raise TypeError(f"not JSON: {type(value).__name__}")
 
 
-def final_verdict(look: wc.Look) -> wc.Verdict:
-    """The check's verdict: the look's, or `inconclusive` when the budget ran out first."""
-    return look.verdict if look.verdict is not None else wc.Verdict.INCONCLUSIVE
+def final_verdict(look: wc.Look, undecided: wc.Verdict = wc.Verdict.INCONCLUSIVE) -> wc.Verdict:
+    """The check's verdict: the look's, or `undecided` when the budget ran out first (a suite case without a
+    tolerance has nothing to stop at but `biased`: `no_evidence` is its verdict at the budget)."""
+    return look.verdict if look.verdict is not None else undecided
+
+
+def run_check(job: CheckJob, progress, undecided: wc.Verdict = wc.Verdict.INCONCLUSIVE) -> tuple[wc.Verdict, dict]:
+    """Run `job` and write its report into ``job.out``: the verdict and the report's summary."""
+    from . import summary as summaries
+    from .report import write_report
+
+    Path(job.out).mkdir(parents=True, exist_ok=True)
+    check = Check(job, progress)
+    look, ref, test = check.run()
+    result = wc.compare(ref, test, job.alpha, tolerance=job.tolerance)
+    verdict = final_verdict(look, undecided)
+    if verdict == wc.Verdict.NO_EVIDENCE and result.verdict == wc.Verdict.INCONCLUSIVE:
+        verdict = wc.Verdict.INCONCLUSIVE  # too much of the image untestable to say "no evidence"
+    summary = summaries.check_summary(result, ref, test, look, verdict, job, check.looks, check.plan.max_passes)
+    write_report(job.out, summary, result, ref, test)
+    return verdict, summary
 
 
 #: Seeds a side may use under a time budget (the pass budget is fixed once the speed is known).

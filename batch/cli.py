@@ -40,14 +40,10 @@ INPUT_ERRORS = (BatchError, wc.WelchInputError, OSError)
 
 def tolerance_arg(text: str) -> float:
     """argparse type: a percentage such as ``0.5%``, returned as a fraction (0.005)."""
-    number = text.strip().removesuffix("%")
     try:
-        value = float(number) / 100.0
-    except ValueError:
-        value = float("nan")
-    if not text.strip().endswith("%") or not 0.0 < value < 10.0:
-        raise argparse.ArgumentTypeError(f"must be a percentage such as 0.5%, got {text!r}")
-    return value
+        return jobs.parse_tolerance(text)
+    except BatchError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _alpha(text: str) -> float:
@@ -228,6 +224,52 @@ def build_parser() -> argparse.ArgumentParser:
     lint.add_argument("blend", metavar="SCENE.blend")
     lint.add_argument("--blend-scene", metavar="NAME")
 
+    s = sub.add_parser(
+        "suite",
+        help="a statistical render regression suite for CI: bless references once, run every case against them",
+        description="A suite file (TOML) lists cases: a scene, overrides, resolution, spp, tile, a budget, devices "
+        "and an optional tolerance (see batch/suite.py or the README). `suite bless` renders each case's "
+        "reference; `suite run` renders each case with the current build on new seeds and decides it against "
+        "its reference with the render-until-decided engine, writing junit.xml, summary.json and a dashboard "
+        "(index.html). SUITE may be `builtin`: one minimal scene per Cycles feature, with shipped references.",
+        epilog="Exit codes of run: 0 every case passed, 1 a case failed (an unexpected `biased`, or an expected "
+        "difference not found), 2 a usage error or a case that could not run, 3 a case is inconclusive. bless: "
+        "1 when a re-bless was refused.",
+    )
+    suite_sub = s.add_subparsers(dest="suite_command", required=True, metavar="ACTION")
+    for action, text in (
+        ("bless", "render each case's reference into --refs (a changed reference is refused without --force)"),
+        ("run", "render each case with the current build and decide it against its reference"),
+    ):
+        a = suite_sub.add_parser(action, help=text, description=text)
+        a.add_argument("suite_file", metavar="SUITE", help="a suite file (.toml), or `builtin`")
+        a.add_argument("--refs", metavar="DIR", help="the references' folder (default for `builtin`: shipped ones)")
+        a.add_argument("--blender", metavar="PATH", help="render with this Blender executable instead of bpy")
+        a.add_argument("--device", choices=jobs.DEVICES, help="every case on this device instead of its own")
+        a.add_argument("--filter", nargs="+", metavar="PATTERN", help="only the cases whose names match")
+        a.add_argument("--json-progress", action="store_true", help="one JSON line per event on stdout")
+        if action == "bless":
+            a.add_argument("--force", action="store_true", help="replace a reference even where the new one differs")
+        else:
+            a.add_argument("--out", required=True, metavar="DIR", help="folder for the results and the dashboard")
+            a.add_argument(
+                "--set",
+                dest="overrides",
+                action="append",
+                default=[],
+                metavar="RNA.PATH=VALUE",
+                help="an override for every case's test side (a planted change)",
+            )
+            a.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")
+            a.add_argument(
+                "--seed-offset",
+                type=jobs.non_negative_int,
+                default=0,
+                metavar="N",
+                help="start the test seeds N after the reference's (default 0: a rerun gives the same answer; a "
+                "nightly run can pass a new N for new passes)",
+            )
+
     d = sub.add_parser("demo", help="the built-in corner scene against a biased variant (walls 0.21 instead of 0.2)")
     d.add_argument("--out", default=os.path.join("out", "demo"), metavar="REPORT_DIR")
     d.add_argument("--passes", type=jobs.positive_int, default=None, help="passes per side")
@@ -346,28 +388,16 @@ def _content_seed(path: str) -> int:
 
 def cmd_check(args) -> int:
     from . import summary as summaries
-    from .check import Check, check_job_from_args, final_verdict
+    from .check import check_job_from_args, run_check
     from .progress import Progress
-    from .report import write_report
 
     job = check_job_from_args(args)
-    os.makedirs(job.out, exist_ok=True)
-    look, ref, test = Check(job, Progress(0, args.json_progress, label="check")).run()
-    verdict = final_verdict(look)
-    result = wc.compare(ref, test, job.alpha, tolerance=job.tolerance)
-    summary = summaries.check_summary(result, ref, test, look, verdict, job, _load_looks(job))
-    write_report(job.out, summary, result, ref, test)
+    verdict, summary = run_check(job, Progress(0, args.json_progress, label="check"))
     print(summaries.verdict_line(summary))
     for line in summaries.console_lines(summary):
         print(f"  {line}")
     print(f"report: {os.path.join(job.out, 'report.html')}")
     return verdict.exit_code
-
-
-def _load_looks(job) -> list[dict]:
-    import json
-
-    return json.loads(job.state_path().read_text())["looks"]
 
 
 def cmd_compare(args) -> int:
@@ -430,6 +460,45 @@ def cmd_lint(args) -> int:
     return EXIT_BIASED if biased else EXIT_OK
 
 
+def cmd_suite(args) -> int:
+    from pathlib import Path
+
+    from . import suite as suites
+    from .progress import Progress
+
+    suite = suites.load_suite(args.suite_file)
+    cases = suite.select(args.filter)
+    refs = Path(args.refs) if args.refs else suites.default_refs(suite)
+    if refs is None:
+        raise BatchError(f"--refs is required for {suite.path} (the folder of its references)")
+
+    def progress(total: int) -> Progress:
+        return Progress(total, args.json_progress, label="suite", brief=True)
+
+    def say(line: str) -> None:
+        print(line, file=sys.stderr if args.json_progress else sys.stdout, flush=True)
+
+    if args.suite_command == "bless":
+        done = suites.bless(suite, cases, refs, progress, args.force, args.blender, args.device, say)
+        for item in done:
+            say(f"{item.case}: {item.status}: {item.message}" + (f" (report: {item.report})" if item.report else ""))
+        return EXIT_BIASED if any(item.status == "refused" for item in done) else EXIT_OK
+    out = Path(args.out)
+    outcomes = suites.run_suite(
+        suite, cases, refs, out, progress, args.blender, args.device, tuple(args.overrides), args.resume, say,
+        args.seed_offset,
+    )
+    summary = suites.write_outputs(suite, outcomes, out, refs)
+    failed = [o.label for o in outcomes if o.status == "failed"]
+    say(
+        "suite: "
+        + ", ".join(f"{v} {k}" for k, v in summary["counts"].items() if v)
+        + (f"; failed: {', '.join(failed)}" if failed else "")
+    )
+    say(f"dashboard: {out / 'index.html'}")
+    return summary["exit_code"]
+
+
 def cmd_demo(args) -> int:
     from .demo import run_demo
 
@@ -445,5 +514,6 @@ COMMANDS = {
     "selftest": cmd_selftest,
     "merge": cmd_merge,
     "lint": cmd_lint,
+    "suite": cmd_suite,
     "demo": cmd_demo,
 }

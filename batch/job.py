@@ -24,6 +24,9 @@ MAX_SPP = 2**24
 GPU_BACKENDS = ("OPTIX", "CUDA", "HIP", "METAL", "ONEAPI")
 DEVICES = ("CPU", "GPU", *GPU_BACKENDS)
 
+#: How a job that asked for a GPU this machine lacks fails (a suite skips such a case with this reason).
+NO_GPU_MESSAGE = "Cycles found no GPU"
+
 #: A pass with NaN/inf pixels: stop the run (what was accumulated is kept), skip the pass, or keep it (its
 #: tiles are excluded from the test with the reason non_finite).
 ON_NAN = ("stop", "skip", "keep")
@@ -142,6 +145,18 @@ def _check_range(option: str, value, low: int, high: int) -> None:
         raise BatchError(f"{option} must be an integer in {low}..{high}, got {value!r}")
 
 
+def parse_tolerance(text: str) -> float:
+    """A percentage such as ``0.5%`` as a fraction (0.005); BatchError unless it is one in (0 %, 1000 %)."""
+    number = text.strip().removesuffix("%")
+    try:
+        value = float(number) / 100.0
+    except ValueError:
+        value = float("nan")
+    if not text.strip().endswith("%") or not 0.0 < value < 10.0:
+        raise BatchError(f"must be a percentage such as 0.5%, got {text!r}")
+    return value
+
+
 def positive_int(text: str) -> int:
     """argparse type: an integer >= 1."""
     try:
@@ -150,6 +165,17 @@ def positive_int(text: str) -> int:
         value = 0
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
+    return value
+
+
+def non_negative_int(text: str) -> int:
+    """argparse type: an integer >= 0."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {text!r}")
     return value
 
 

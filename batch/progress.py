@@ -15,12 +15,18 @@ from . import events, fmt
 #: Recent passes the ETA is estimated from: the first passes include start-up costs.
 ETA_WINDOW = 16
 
+#: What a brief plain log shows.
+_BRIEF_EVENTS = (events.Warned, events.Failed)
+
 
 class Progress:
     """Reports a job's events; `start`, `pass_done`, `warning`, `error` and `finished` make the events."""
 
-    def __init__(self, total: int, json_lines: bool = False, label: str = "render", live: bool | None = None):
+    def __init__(
+        self, total: int, json_lines: bool = False, label: str = "render", live: bool | None = None, brief=False
+    ):
         self.total = total
+        self.brief = brief  # plain lines only for looks, warnings and errors: a suite's log, not every pass
         self.json_lines = json_lines
         self.label = label
         self.done = 0
@@ -33,6 +39,8 @@ class Progress:
     def emit(self, event: events.Event) -> None:
         """Write one event: a JSON line on stdout, the live line, or a line for people on stderr."""
         if self._silent:
+            return
+        if self.brief and not (self.json_lines or self.live) and not isinstance(event, _BRIEF_EVENTS):
             return
         try:
             if self.json_lines:

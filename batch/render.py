@@ -20,7 +20,7 @@ import numpy as np
 
 from ._siblings import welch_core as wc
 from .errors import BatchError
-from .job import DEFAULT_SAMPLING_PATTERNS, GPU_BACKENDS
+from .job import DEFAULT_SAMPLING_PATTERNS, GPU_BACKENDS, NO_GPU_MESSAGE
 from .rna import jsonable, render_size
 from .scenes import BUILDER_VERSION, SCENES, build_scene
 
@@ -270,7 +270,7 @@ def _set_device(changes: list[dict], scene: bpy.types.Scene, device: str) -> Non
                 d.use = d in gpus
             _set(changes, scene.cycles, "cycles", "device", "GPU")
             return
-    raise RenderSetupError(f"device {device!r}: Cycles found no GPU")
+    raise RenderSetupError(f"device {device!r}: {NO_GPU_MESSAGE}")
 
 
 # ---------------------------------------------------------------------------------------------------------------

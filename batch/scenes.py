@@ -14,6 +14,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import bpy
+import numpy as np
 from mathutils import Vector
 
 from .errors import BatchError
@@ -216,11 +217,204 @@ def _glossy_scene() -> bpy.types.Scene:
     return scene
 
 
+# -- one feature each: the built-in regression suite's scenes (batch/suites/builtin.toml) ---------------------
+# The corner box with one object or setting that exercises one part of Cycles, nothing else: a change in that part
+# shows in a few tiles of a small image, where the rest of the box is a control.
+
+OBJECT_CENTER = (0.45 * BOX, 0.55 * BOX, 0.25 * BOX)
+OBJECT_RADIUS = 0.25 * BOX
+
+
+def _principled(name: str, inputs: dict) -> bpy.types.Material:
+    """A Principled BSDF material; `inputs` maps an input's name, or a tuple of the names it had in different
+    Blenders, to its value."""
+    material = bpy.data.materials.new(name)
+    bsdf = node_tree(material).nodes["Principled BSDF"]
+    for names, value in inputs.items():
+        names = (names,) if isinstance(names, str) else names
+        next(bsdf.inputs[n] for n in names if n in bsdf.inputs).default_value = value
+    return material
+
+
+def _object_scene(name: str, material: bpy.types.Material) -> bpy.types.Scene:
+    scene = _corner(name)
+    _sphere(scene, "Object", OBJECT_CENTER, OBJECT_RADIUS, material)
+    return scene
+
+
+def _glossy_rough_scene() -> bpy.types.Scene:
+    return _object_scene("glossy_rough", _principled("Object", {"Metallic": 1.0, "Roughness": 0.3}))
+
+
+def _glossy_sharp_scene() -> bpy.types.Scene:
+    return _object_scene("glossy_sharp", _principled("Object", {"Metallic": 1.0, "Roughness": 0.02}))
+
+
+def _sss_scene() -> bpy.types.Scene:
+    weight = ("Subsurface Weight", "Subsurface")  # 'Subsurface' before 4.0
+    return _object_scene("sss", _principled("Object", {weight: 1.0, "Roughness": 0.5}))
+
+
+def _textured_scene() -> bpy.types.Scene:
+    """A Principled sphere with a checker base colour and a tangent-space normal map from a wave texture."""
+    material = _principled("Object", {"Roughness": 0.4})
+    tree = material.node_tree
+    bsdf = tree.nodes["Principled BSDF"]
+    checker = tree.nodes.new("ShaderNodeTexChecker")
+    checker.inputs["Scale"].default_value = 4.0
+    tree.links.new(checker.outputs["Color"], bsdf.inputs["Base Color"])
+    waves = tree.nodes.new("ShaderNodeTexWave")
+    waves.inputs["Scale"].default_value = 3.0
+    normal_map = tree.nodes.new("ShaderNodeNormalMap")
+    normal_map.name = "Normal Map"
+    normal_map.inputs["Strength"].default_value = 0.5
+    tree.links.new(waves.outputs["Color"], normal_map.inputs["Color"])
+    tree.links.new(normal_map.outputs["Normal"], bsdf.inputs["Normal"])
+    scene = _object_scene("textured", material)
+    sphere = scene.objects["Object"]
+    sphere.data.uv_layers.new(name="UVMap")  # a normal map needs tangents, tangents need UVs
+    return scene
+
+
+def _volume_material(name: str, density: float, noise: bool) -> bpy.types.Material:
+    """Volume Scatter of `density`, or with `noise` its density times a noise texture (heterogeneous)."""
+    material = bpy.data.materials.new(name)
+    tree = node_tree(material)
+    tree.nodes.clear()
+    scatter = tree.nodes.new("ShaderNodeVolumeScatter")
+    scatter.name = "Volume Scatter"
+    scatter.inputs["Density"].default_value = density
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    tree.links.new(scatter.outputs["Volume"], out.inputs["Volume"])
+    if noise:
+        texture = tree.nodes.new("ShaderNodeTexNoise")
+        texture.inputs["Scale"].default_value = 3.0
+        scale = tree.nodes.new("ShaderNodeMath")
+        scale.name = "Density"
+        scale.operation = "MULTIPLY"
+        scale.inputs[1].default_value = density
+        tree.links.new(texture.outputs["Fac"], scale.inputs[0])
+        tree.links.new(scale.outputs["Value"], scatter.inputs["Density"])
+    return material
+
+
+def _box(scene, name: str, center, half: float, material) -> bpy.types.Object:
+    mesh = bpy.data.meshes.new(name)
+    corners = [(x, y, z) for x in (-half, half) for y in (-half, half) for z in (-half, half)]
+    faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    mesh.from_pydata(corners, [], faces)
+    obj = _link(scene, name, mesh, material)
+    obj.location = center
+    return obj
+
+
+def _volume_scene(name: str, noise: bool) -> bpy.types.Scene:
+    scene = _corner(name)
+    _box(scene, "Fog", OBJECT_CENTER, OBJECT_RADIUS, _volume_material("Fog", 2.0, noise))
+    scene.cycles.volume_bounces = CYCLES_MAX_BOUNCES
+    return scene
+
+
+def _many_lights_scene() -> bpy.types.Scene:
+    """The corner lit by a 4x4 grid of small point lights instead of one area light (the light tree picks one)."""
+    scene = _corner("many_lights")
+    bpy.data.objects.remove(scene.objects["Light"])
+    for i in range(16):
+        light = bpy.data.lights.new(f"Small{i:02d}", "POINT")
+        light.energy = LIGHT_ENERGY / 16 * (1 + i % 3)  # unequal powers: the tree's importance has work to do
+        light.shadow_soft_size = 0.02
+        position = (0.2 + 0.2 * (i % 4), 0.4 + 0.3 * (i // 4), 0.85)
+        _link(scene, f"Small{i:02d}", light).location = tuple(p * BOX for p in position)
+    return scene
+
+
+def _environment_scene() -> bpy.types.Scene:
+    """The corner without its light, lit by an environment image (dim sky, a bright small sun): the world's
+    importance map and multiple importance sampling at work."""
+    scene = _corner("environment")
+    bpy.data.objects.remove(scene.objects["Light"])
+    width, height = 64, 32
+    image = bpy.data.images.new("Sky", width, height, float_buffer=True)
+    y, x = np.mgrid[0:height, 0:width]
+    sky = np.stack([0.2 + 0.3 * y / height, 0.3 + 0.3 * y / height, 0.6 + 0.2 * y / height, np.ones_like(y)], -1)
+    sun = ((x - 40) ** 2 + (y - 24) ** 2) <= 2
+    sky[sun, :3] = 200.0
+    image.pixels.foreach_set(sky.astype(np.float32).ravel())
+    image.pack()  # a generated image with pixels set is kept in the file, so a saved .blend renders it too
+    tree = node_tree(scene.world)
+    texture = tree.nodes.new("ShaderNodeTexEnvironment")
+    texture.image = image
+    tree.links.new(texture.outputs["Color"], tree.nodes["Background"].inputs["Color"])
+    tree.nodes["Background"].inputs["Strength"].default_value = 1.0
+    return scene
+
+
+def _depth_of_field_scene() -> bpy.types.Scene:
+    scene = _object_scene("depth_of_field", _diffuse("Object", 0.6))
+    camera = scene.camera.data
+    camera.dof.use_dof = True  # focused at 0.5 m, the sphere at 2.6 m: a circle of confusion of 5 % of the frame
+    camera.dof.focus_distance = 0.5
+    camera.dof.aperture_fstop = 0.5
+    return scene
+
+
+def _motion_blur_scene() -> bpy.types.Scene:
+    """A bright sphere moving across the frame during the shutter (frame 2 of a move from frame 1 to 3)."""
+    scene = _object_scene("motion_blur", _diffuse("Object", 0.8))
+    sphere = scene.objects["Object"]
+    x, y, z = OBJECT_CENTER
+    for frame, dx in ((1, -0.3), (3, 0.3)):
+        sphere.location = (x + dx * BOX, y, z)
+        sphere.keyframe_insert("location", frame=frame)
+    scene.frame_set(2)
+    scene.render.use_motion_blur = True
+    scene.render.motion_blur_shutter = 0.5
+    return scene
+
+
+def _hair_scene() -> bpy.types.Scene:
+    """Particle hair (curves in Cycles) growing from a patch of the floor."""
+    scene = _corner("hair")
+    mesh = bpy.data.meshes.new("Patch")
+    h = 0.25 * BOX
+    cx, cy = OBJECT_CENTER[:2]
+    mesh.from_pydata([(cx - h, cy - h, 0.001), (cx + h, cy - h, 0.001), (cx + h, cy + h, 0.001),
+                      (cx - h, cy + h, 0.001)], [], [(0, 1, 2, 3)])  # fmt: skip
+    patch = _link(scene, "Patch", mesh, _diffuse("Patch", 0.2))
+    hair = bpy.data.materials.new("Hair")
+    tree = node_tree(hair)
+    tree.nodes.clear()
+    bsdf = tree.nodes.new("ShaderNodeBsdfHairPrincipled")
+    bsdf.name = "Hair BSDF"
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    tree.links.new(bsdf.outputs[0], out.inputs["Surface"])
+    mesh.materials.append(hair)
+    modifier = patch.modifiers.new("Hair", "PARTICLE_SYSTEM")
+    settings = modifier.particle_system.settings
+    settings.type = "HAIR"
+    settings.count = 400
+    settings.hair_length = 0.3 * BOX
+    settings.material = 2  # the second slot: Hair
+    settings.display_step = settings.render_step = 2
+    return scene
+
+
 SCENES: dict[str, Callable[[], bpy.types.Scene]] = {
     "corner": _corner_scene,
     "corner_glass": _corner_glass_scene,
     "corner_mesh_light": _corner_mesh_light_scene,
     "glossy": _glossy_scene,
+    "glossy_rough": _glossy_rough_scene,
+    "glossy_sharp": _glossy_sharp_scene,
+    "many_lights": _many_lights_scene,
+    "environment": _environment_scene,
+    "volume": lambda: _volume_scene("volume", noise=False),
+    "volume_noise": lambda: _volume_scene("volume_noise", noise=True),
+    "sss": _sss_scene,
+    "depth_of_field": _depth_of_field_scene,
+    "motion_blur": _motion_blur_scene,
+    "hair": _hair_scene,
+    "textured": _textured_scene,
 }
 
 

@@ -314,17 +314,17 @@ def warnings(summary: dict[str, Any]) -> list[str]:
     return out
 
 
-def check_summary(comparison, ref, test, look, verdict, job, looks: list[dict]) -> dict[str, Any]:
+def check_summary(comparison, ref, test, look, verdict, job, looks: list[dict], max_passes: int) -> dict[str, Any]:
     """The summary of a `check`: the comparison of the final data (maps, tiles, effects) under the verdict of the
-    sequential design, with the design and every look. The fixed-sample global p-value is left out: after looks
-    it is not a valid p-value."""
+    sequential design (whose budget was `max_passes` a side), with the design and every look. The fixed-sample
+    global p-value is left out: after looks it is not a valid p-value."""
     summary = summarize(comparison, ref, test, "reference", "test")
     summary.update(
         verdict=verdict.label,
         verdict_text=verdict.text,
         p_value=None,
         check={
-            "max_passes": looks[-1]["passes"] if not looks else round(looks[-1]["passes"] / looks[-1]["fraction"]),
+            "max_passes": max_passes,
             "max_seconds": job.max_seconds,
             "tolerance": job.tolerance,
             "paired": job.paired,

@@ -94,7 +94,7 @@ def test_a_check_report_lists_its_looks(tmp_path):
     class Job:
         max_seconds, tolerance, paired = None, 0.01, False
 
-    s = summary.check_summary(c, ref, test, look, wc.Verdict.BIASED, Job, looks)
+    s = summary.check_summary(c, ref, test, look, wc.Verdict.BIASED, Job, looks, 32)
     report.write_report(tmp_path, s, c, ref, test)
     data = page_data(tmp_path / "report.html")
     assert data["summary"]["check"]["looks"] == looks and data["summary"]["p_value"] is None

@@ -1,0 +1,119 @@
+"""The dashboard of a suite run: one self-contained ``index.html`` with a row per case and device (thumbnails of
+the reference and the test side and the p-value map, the verdict, the largest effect with its interval, passes
+and seconds spent) linking to each case's full report."""
+
+from __future__ import annotations
+
+import base64
+import html
+from pathlib import Path
+
+import numpy as np
+
+from . import fmt
+from ._siblings import welch_core as wc
+
+THUMBNAIL = 96  # pixels, the longer side
+
+_STATUS_COLOURS = {
+    "passed": "#1b7f3b",
+    "failed": "#b00020",
+    "inconclusive": "#a06000",
+    "error": "#b00020",
+    "skipped": "#777",
+}
+
+_STYLE = """
+body{font:14px/1.45 system-ui,sans-serif;margin:0;color:#1d1d1f;background:#f6f6f4}
+header{padding:16px 24px;background:#fff;border-bottom:1px solid #ddd}
+h1{margin:0;font-size:24px}
+main{padding:16px 24px}
+table{border-collapse:collapse;background:#fff;border:1px solid #ddd}
+td,th{padding:6px 10px;text-align:left;vertical-align:middle;border-bottom:1px solid #eee}
+th{font-weight:600;background:#fafafa}
+img{width:96px;height:96px;object-fit:contain;image-rendering:pixelated;background:#777;display:block}
+.status{font-weight:600;text-transform:uppercase;font-size:12px;letter-spacing:.04em}
+.num{text-align:right;font-variant-numeric:tabular-nums}
+.muted{color:#777;font-size:12px;max-width:340px}
+.counts span{margin-right:14px}
+"""
+
+
+def write_dashboard(path: Path, summary: dict, outcomes, refs: Path) -> None:
+    """Write the dashboard of `outcomes` (``batch.suite.Outcome``) with `summary` (``summary.json``'s content)."""
+    rows = "".join(_row(o, record, refs) for o, record in zip(outcomes, summary["cases"], strict=True))
+    counts = "".join(
+        f'<span style="color:{_STATUS_COLOURS[k]}">{v} {k}</span>' for k, v in summary["counts"].items() if v
+    )
+    verdict = {0: "every case passed", 1: "a case failed", 2: "a case could not run", 3: "a case is inconclusive"}
+    page = f"""<!doctype html>
+<html lang="en"><head><meta charset="utf-8"><title>Suite {html.escape(summary["suite"])}: \
+{verdict[summary["exit_code"]]}</title>
+<meta name="viewport" content="width=device-width, initial-scale=1"><style>{_STYLE}</style></head>
+<body><header><h1 id="title">Suite {html.escape(summary["suite"])}: {verdict[summary["exit_code"]]}</h1>
+<div class="counts" id="counts">{counts}</div>
+<div class="muted">alpha {summary["alpha"]:g} per case · references {html.escape(summary["refs"])} ·
+{html.escape(summary["file"])}</div></header>
+<main><table id="cases"><thead><tr><th>case</th><th>device</th><th>status</th><th>reference</th><th>test</th>
+<th>p-value map</th><th>verdict</th><th>largest difference</th><th class="num">passes</th>
+<th class="num">seconds</th><th>report</th></tr></thead><tbody>{rows}</tbody></table>
+<p class="muted">p-value map: log scale, yellow for small p (1e-12 and below), violet for p near 1, grey where no
+tile-channel could be tested. Thumbnails share the reference's exposure.</p></main></body></html>
+"""
+    wc.formats.atomic_write(path, lambda f: f.write(page.encode("utf-8")))
+
+
+def _row(outcome, record: dict, refs: Path) -> str:
+    colour = _STATUS_COLOURS[outcome.status]
+    pictures = _thumbnails(outcome, refs)
+    cells = "".join(
+        f'<td><img alt="{name}" src="{url}"></td>' if url else f'<td class="muted">{"—"}</td>'
+        for name, url in zip(("reference", "test", "p-value map"), pictures, strict=True)
+    )
+    effect = record["largest_effect"]
+    difference = (
+        f"{fmt.percent(effect['rel_diff'])} [{fmt.percent(effect['ci_low'])}, {fmt.percent(effect['ci_high'])}]"
+        f'<div class="muted">{effect["channel"]} at {effect["x"]}, {effect["y"]} ({effect["size"]} px)</div>'
+        if effect
+        else "—"
+    )
+    report = f'<a href="{html.escape(record["report"])}">report</a>' if record["report"] else ""
+    why = f'<div class="muted">{html.escape(outcome.case.why)}</div>' if outcome.case.why else ""
+    return (
+        f'<tr class="case" data-status="{outcome.status}"><td><b>{html.escape(outcome.case.name)}</b>{why}</td>'
+        f"<td>{html.escape(outcome.device)}</td>"
+        f'<td class="status" style="color:{colour}">{outcome.status}</td>{cells}'
+        f'<td>{html.escape(outcome.verdict or "")}<div class="muted">{html.escape(outcome.message)}</div></td>'
+        f'<td>{difference}</td><td class="num">{outcome.passes or ""}</td>'
+        f'<td class="num">{outcome.seconds:.1f}</td><td>{report}</td></tr>'
+    )
+
+
+def _thumbnails(outcome, refs: Path) -> list[str | None]:
+    """Data URLs of the reference's and the test side's mean renders and of the p-value map (None: missing)."""
+    from .suite import reference_path
+
+    if outcome.folder is None:
+        return [None, None, None]
+    folder = Path(outcome.folder)
+    means = []
+    for path in (reference_path(refs, outcome.case), folder / "test.npz"):
+        try:
+            preview, run = wc.load_preview(path), wc.load_stats(path, pixels=False)
+        except wc.WelchInputError:
+            preview = None
+        means.append(None if preview is None or not run.n else wc.shrink(preview, THUMBNAIL) / np.float32(run.n))
+    scale = wc.exposure(means[0]) if means[0] is not None else None
+    urls: list[str | None] = [None if m is None else _png(wc.tonemap(m, scale=scale)) for m in means]
+    try:
+        p = wc.read_exr(folder / "pvalues.exr").astype(float)
+    except (OSError, wc.WelchInputError):
+        return [*urls, None]
+    p[p < 0] = np.nan  # the report writes untested tile-channels as -1
+    urls.append(_png(wc.colorize(wc.colormap.map_values(p, "log10"))))
+    return urls
+
+
+def _png(rgb: np.ndarray) -> str:
+    data = wc.png.png_bytes(wc.png.to_uint8(rgb), fast=True)
+    return "data:image/png;base64," + base64.b64encode(data).decode("ascii")

@@ -1,0 +1,514 @@
+"""Statistical render regression suites: a TOML file of cases, references rendered once (``suite bless``), and
+runs that decide each case against its reference with the render-until-decided engine (``suite run``), for CI.
+
+A suite file::
+
+    [suite]
+    name = "my renderer"      # optional; default: the file's name
+    alpha = 0.01              # the false-positive rate of each case's `biased`
+
+    [defaults]                # optional: any case key, for every case
+    resolution = [64, 64]
+
+    [[case]]
+    name = "glossy"           # letters, digits, - _ .
+    scene = "glossy_rough"    # a built-in scene, or
+    # blend = "scenes/glossy.blend"   # a .blend file, relative to the suite file (blend_scene = "Scene")
+    set = ["cycles.max_bounces=64"]   # overrides of this case, both sides
+    resolution = [64, 64]
+    spp = 1                   # samples per pass
+    tile = 16
+    passes = 64               # the reference's passes, and the most the test side renders
+    seconds = 60              # optional: the most render seconds of the test side
+    devices = ["CPU", "OPTIX"]
+    tolerance = "2%"          # optional: stop early at `equivalent` once every tile is bounded within it
+    expect = "same"           # or "biased": a known difference, the case passes when it is found
+    sampling_pattern = "TABULATED_SOBOL"
+    why = "what the case exercises and why its size and budget suffice"
+
+References live in a folder (``--refs``): ``<case>.npz`` (the statistics, with what rendered them) and
+``<case>.json`` (when, how, on which seeds). A run's test side renders seeds after the reference's, so the two
+sides never share a seed; it stops at `biased` (or `equivalent` with a tolerance) or at the budget, where its
+verdict is `no evidence of bias` (`inconclusive` when too much of the image could not be tested).
+
+Nothing here imports bpy: the renders run in their own processes through the render-job contract.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import json
+import os
+import re
+import shutil
+import time
+import tomllib
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+
+from ._siblings import welch_core as wc
+from .check import CheckJob, run_check
+from .errors import BatchError
+from .job import DEVICES, NO_GPU_MESSAGE, RenderJob, parse_tolerance
+from .overrides import parse_override
+
+#: The suite that ships with the tool: one minimal scene per Cycles feature, and its references.
+BUILTIN = Path(__file__).with_name("suites") / "builtin.toml"
+BUILTIN_REFS = Path(__file__).with_name("suites") / "builtin-refs"
+
+EXPECTATIONS = ("same", "biased")
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+_CASE_KEYS = {
+    "name", "scene", "blend", "blend_scene", "set", "resolution", "spp", "tile", "passes", "seconds", "devices",
+    "tolerance", "expect", "sampling_pattern", "why", "planted",
+}  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Case:
+    """One case of a suite (see the module docstring for the keys)."""
+
+    name: str
+    scene: str | None = None
+    blend: str | None = None
+    blend_scene: str | None = None
+    overrides: tuple[str, ...] = ()
+    resolution: tuple[int, int] | None = None
+    spp: int = 1
+    tile: int = 16
+    passes: int = 64
+    seconds: float | None = None
+    devices: tuple[str, ...] = ("CPU",)
+    tolerance: float | None = None
+    expect: str = "same"
+    sampling_pattern: str | None = None
+    why: str = ""
+    planted: str | None = None  # a change of the case's feature that it must find (documentation, benchmarks)
+
+    def job(self, out: str, seeds, device: str, blender: str | None, extra: tuple[str, ...] = ()) -> RenderJob:
+        """The render job of one side of this case."""
+        return RenderJob(
+            out=out,
+            seeds=tuple(seeds),
+            spp=self.spp,
+            tile=self.tile,
+            blend=self.blend,
+            scene=self.scene,
+            blend_scene=self.blend_scene,
+            resolution=self.resolution,
+            device=device,
+            sampling_pattern=self.sampling_pattern,
+            overrides=self.overrides + tuple(extra),
+            blender=blender,
+            checkpoint_every=max(self.passes, 1),
+        )
+
+
+@dataclass(frozen=True)
+class Suite:
+    path: Path
+    name: str
+    alpha: float
+    cases: tuple[Case, ...]
+
+    def select(self, patterns: list[str] | None) -> list[Case]:
+        """The cases whose names match any of the shell patterns (all without patterns)."""
+        if not patterns:
+            return list(self.cases)
+        chosen = [c for c in self.cases if any(fnmatch.fnmatchcase(c.name, p) for p in patterns)]
+        if not chosen:
+            raise BatchError(f"--filter {' '.join(patterns)} matches no case of {self.path}")
+        return chosen
+
+
+def suite_path(name: str) -> Path:
+    """``builtin`` or a path."""
+    return BUILTIN if name == "builtin" else Path(name)
+
+
+def load_suite(name: str) -> Suite:
+    """Read and check a suite file; any problem raises BatchError with one line naming the file and the case."""
+    path = suite_path(name)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise BatchError(f"suite file {path} does not exist") from None
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise BatchError(f"suite file {path} is not readable TOML: {exc}") from None
+    unknown = sorted(set(data) - {"suite", "defaults", "case"})
+    if unknown:
+        raise BatchError(f"{path}: unknown table [{unknown[0]}] (a suite has [suite], [defaults] and [[case]])")
+    header = data.get("suite", {})
+    if set(header) - {"name", "alpha"}:
+        raise BatchError(f"{path}: unknown key {sorted(set(header) - {'name', 'alpha'})[0]!r} in [suite]")
+    alpha = header.get("alpha", 0.01)
+    if not isinstance(alpha, float) or not 0 < alpha < 1:
+        raise BatchError(f"{path}: [suite] alpha must be a number in (0, 1), got {alpha!r}")
+    defaults = data.get("defaults", {})
+    raw_cases = data.get("case", [])
+    if not isinstance(raw_cases, list) or not raw_cases:
+        raise BatchError(f"{path}: no [[case]] in the suite")
+    cases, seen = [], set()
+    for index, raw in enumerate(raw_cases):
+        entry = {**defaults, **raw}
+        label = f"{path}: case {entry.get('name', index + 1)!r}"
+        case = _case(entry, label, path.parent)
+        if case.name in seen:
+            raise BatchError(f"{label}: the name is used twice")
+        seen.add(case.name)
+        cases.append(case)
+    return Suite(path, str(header.get("name", path.stem)), alpha, tuple(cases))
+
+
+def _case(entry: dict, label: str, folder: Path) -> Case:
+    unknown = sorted(set(entry) - _CASE_KEYS)
+    if unknown:
+        raise BatchError(f"{label}: unknown key {unknown[0]!r}")
+    name = entry.get("name")
+    if not isinstance(name, str) or not _NAME.match(name):
+        raise BatchError(f"{label}: 'name' must be letters, digits, '-', '_' or '.', got {name!r}")
+    if ("scene" in entry) == ("blend" in entry):
+        raise BatchError(f"{label}: give 'scene' (a built-in scene) or 'blend' (a .blend file), one of them")
+    blend = None
+    if "blend" in entry:
+        blend = str((folder / _typed(entry, "blend", str, label)).resolve())
+        if not Path(blend).is_file():
+            raise BatchError(f"{label}: blend file {blend} does not exist")
+    overrides = _typed(entry, "set", list, label, [])
+    for text in overrides:
+        try:
+            parse_override(text)
+        except (BatchError, TypeError) as exc:
+            raise BatchError(f"{label}: 'set' {text!r}: {exc}") from None
+    resolution = entry.get("resolution")
+    if resolution is not None and not (
+        isinstance(resolution, list) and len(resolution) == 2 and all(_positive(v) for v in resolution)
+    ):
+        raise BatchError(f"{label}: 'resolution' must be [width, height] in pixels, got {resolution!r}")
+    numbers = {key: _typed(entry, key, int, label, default) for key, default in (("spp", 1), ("tile", 16))}
+    passes = _typed(entry, "passes", int, label, 64)
+    if passes < wc.looks.FIRST_LOOK or any(v < 1 for v in numbers.values()):
+        raise BatchError(f"{label}: 'spp' and 'tile' must be positive and 'passes' at least {wc.looks.FIRST_LOOK}")
+    seconds = entry.get("seconds")
+    if seconds is not None and (isinstance(seconds, bool) or not isinstance(seconds, int | float) or seconds <= 0):
+        raise BatchError(f"{label}: 'seconds' must be a positive number, got {seconds!r}")
+    devices = tuple(_typed(entry, "devices", list, label, ["CPU"]))
+    bad = [d for d in devices if d not in DEVICES]
+    if not devices or bad:
+        raise BatchError(f"{label}: 'devices' must be some of {', '.join(DEVICES)}, got {list(devices)!r}")
+    tolerance = entry.get("tolerance")
+    if tolerance is not None:
+        try:
+            tolerance = parse_tolerance(str(tolerance))
+        except BatchError as exc:
+            raise BatchError(f"{label}: 'tolerance' {exc}") from None
+    expect = entry.get("expect", "same")
+    if expect not in EXPECTATIONS:
+        raise BatchError(f"{label}: 'expect' must be 'same' or 'biased', got {expect!r}")
+    return Case(
+        name=name,
+        scene=_typed(entry, "scene", str, label, None),
+        blend=blend,
+        blend_scene=_typed(entry, "blend_scene", str, label, None),
+        overrides=tuple(overrides),
+        resolution=tuple(resolution) if resolution else None,
+        passes=passes,
+        seconds=float(seconds) if seconds is not None else None,
+        devices=devices,
+        tolerance=tolerance,
+        expect=expect,
+        sampling_pattern=_typed(entry, "sampling_pattern", str, label, None),
+        why=_typed(entry, "why", str, label, ""),
+        planted=_typed(entry, "planted", str, label, None),
+        **numbers,
+    )
+
+
+def _positive(value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value > 0
+
+
+def _typed(entry: dict, key: str, kind: type, label: str, default=None):
+    value = entry.get(key, default)
+    if value is default:
+        return value
+    if not isinstance(value, kind) or isinstance(value, bool) and kind is not bool:
+        raise BatchError(f"{label}: {key!r} must be a {kind.__name__}, got {value!r}")
+    if kind is list and not all(isinstance(v, str) for v in value):
+        raise BatchError(f"{label}: {key!r} must be a list of strings, got {value!r}")
+    return value
+
+
+# -- references ---------------------------------------------------------------------------------------------------
+
+
+def reference_path(refs: Path, case: Case) -> Path:
+    return refs / f"{case.name}.npz"
+
+
+def default_refs(suite: Suite) -> Path | None:
+    """The shipped references of the built-in suite; None for others (``--refs`` is required)."""
+    return BUILTIN_REFS if suite.path == BUILTIN else None
+
+
+@dataclass
+class Blessed:
+    """What ``suite bless`` did with one case."""
+
+    case: str
+    status: str  # "blessed", "re-blessed", "refused", "forced"
+    message: str
+    report: str | None = None
+
+
+def bless(suite: Suite, cases: list[Case], refs: Path, progress_factory, force: bool = False, blender=None,
+          device: str | None = None, say=print) -> list[Blessed]:  # fmt: skip
+    """Render the reference of each case into `refs`. A case that has one already gets a new render on new
+    seeds, compared with the stored one: where they differ significantly the old one stays (unless `force`), and
+    the comparison's report is kept next to it: a silent re-bless is how thresholds creep."""
+    from . import summary as summaries
+    from .launch import run_job
+    from .report import write_report
+
+    refs.mkdir(parents=True, exist_ok=True)
+    done = []
+    for number, case in enumerate(cases, 1):
+        target = reference_path(refs, case)
+        old = wc.load_stats(target) if target.exists() else None
+        first = 0 if old is None else max(old.seeds) + 1
+        fresh = refs / f".{case.name}.new.npz"
+        fresh.unlink(missing_ok=True)
+        chosen = device or case.devices[0]
+        say(f"suite bless: {number}/{len(cases)} {case.name} ({case.passes} passes on {chosen})")
+        job = case.job(str(fresh), range(first, first + case.passes), chosen, blender)
+        start = time.perf_counter()
+        run_job(job, progress_factory(case.passes))
+        seconds = time.perf_counter() - start
+        new = wc.load_stats(fresh)
+        status, message, report = "blessed", f"{new.n} passes in {seconds:.1f} s", None
+        if old is not None:
+            try:
+                result = wc.compare(old, new, suite.alpha, "welch")
+            except wc.WelchInputError as exc:  # another size or tile: the case changed, nothing to compare
+                if not force:
+                    fresh.unlink()
+                    done.append(Blessed(case.name, "refused", f"the stored reference can't be compared: {exc}"))
+                    continue
+                os.replace(fresh, target)
+                _write_provenance(refs, case, new, job, seconds, "forced")
+                done.append(Blessed(case.name, "forced", f"{new.n} passes; replaced a reference of another grid"))
+                continue
+            report = str(refs / f"{case.name}.rebless")
+            summary = summaries.summarize(result, old, new, "stored reference", "new render")
+            write_report(report, summary, result, old, new)
+            line = summaries.verdict_line(summary)
+            if result.verdict == wc.Verdict.BIASED and not force:
+                fresh.unlink()
+                refusal = f"the new render differs from the stored one: {line}"
+                done.append(Blessed(case.name, "refused", refusal, report))
+                continue
+            status = "forced" if result.verdict == wc.Verdict.BIASED else "re-blessed"
+            message = f"{message}; against the stored one: {line}"
+        os.replace(fresh, target)
+        _write_provenance(refs, case, new, job, seconds, status)
+        done.append(Blessed(case.name, status, message, report))
+    return done
+
+
+def _write_provenance(refs: Path, case: Case, stats: wc.TileStats, job: RenderJob, seconds: float, status: str):
+    info = stats.info
+    record = {
+        "case": case.name,
+        "blessed": datetime.now(UTC).isoformat(timespec="seconds"),
+        "status": status,
+        "renderer": info.renderer,
+        "blender_version": info.renderer_version,
+        "build_hash": info.build_hash,
+        "device": info.device,
+        "sampling_pattern": info.sampling_pattern,
+        "seeds": [min(stats.seeds), max(stats.seeds) + 1],
+        "passes": stats.n,
+        "render_seconds": round(seconds, 3),
+        "command": ["python", "-m", "batch", "render", *job.replace(out=f"{case.name}.npz").to_argv()],
+    }
+    text = json.dumps(record, indent=2)
+    wc.formats.atomic_write(refs / f"{case.name}.json", lambda f: f.write(text.encode()))
+
+
+# -- runs ---------------------------------------------------------------------------------------------------------
+
+
+@dataclass
+class Outcome:
+    """One case on one device."""
+
+    case: Case
+    device: str
+    status: str  # "passed", "failed", "inconclusive", "skipped", "error"
+    verdict: str | None = None
+    message: str = ""
+    seconds: float = 0.0
+    passes: int = 0
+    folder: str | None = None
+    summary: dict | None = None
+
+    @property
+    def label(self) -> str:
+        return f"{self.case.name} [{self.device}]"
+
+
+def status_of(case: Case, verdict: wc.Verdict) -> str:
+    """Passed when the verdict is what the case expects; a case expected to be `biased` fails when not found."""
+    if verdict == wc.Verdict.INCONCLUSIVE:
+        return "inconclusive"
+    found = verdict == wc.Verdict.BIASED
+    return "passed" if found == (case.expect == "biased") else "failed"
+
+
+def exit_code(outcomes: list[Outcome]) -> int:
+    """1 when a case failed (an unexpected `biased`, or an expected difference not found), else 2 when a case
+    could not run, else 3 when one was inconclusive, else 0 (skipped cases do not count)."""
+    statuses = {o.status for o in outcomes}
+    for status, code in (("failed", 1), ("error", 2), ("inconclusive", 3)):
+        if status in statuses:
+            return code
+    return 0
+
+
+def run_suite(suite: Suite, cases: list[Case], refs: Path, out: Path, progress_factory, blender=None,
+              device: str | None = None, overrides: tuple[str, ...] = (), resume: bool = False,
+              say=print, seed_offset: int = 0) -> list[Outcome]:  # fmt: skip
+    """Decide every case on every device (its own, or `device` for all) against its reference in `refs`;
+    `overrides` go to every case's test side (a planted change). The test side's seeds start `seed_offset`
+    after the reference's last one: the same run gives the same answer, another offset draws new passes."""
+    missing = [c.name for c in cases if not reference_path(refs, c).exists()]
+    if missing:
+        raise BatchError(f"no reference for {', '.join(missing)} in {refs}: run `suite bless` first")
+    runs = [(case, d) for case in cases for d in ((device,) if device else case.devices)]
+    if not resume:
+        taken = [str(out / c.name / d) for c, d in runs if (out / c.name / d).exists()]
+        if taken:
+            raise BatchError(f"{taken[0]} already exists: pass --resume to continue the run, or another --out")
+    outcomes = []
+    for number, (case, dev) in enumerate(runs, 1):
+        say(f"suite run: {number}/{len(runs)} {case.name} on {dev}")
+        outcome = _run_case(suite, case, dev, refs, out, progress_factory, blender, overrides, resume, seed_offset)
+        say(f"  {outcome.status}: {outcome.message}")
+        outcomes.append(outcome)
+    return outcomes
+
+
+def _run_case(suite, case, device, refs, out, progress_factory, blender, overrides, resume, seed_offset) -> Outcome:
+    from . import summary as summaries
+
+    folder = out / case.name / device
+    reference = wc.load_stats(reference_path(refs, case), pixels=False)
+    first = max(reference.seeds) + 1 + seed_offset
+    budget = case.passes if case.seconds is None else None
+    count = budget or 100_000
+    job = CheckJob(
+        reference=case.job(str(reference_path(refs, case)), reference.seeds, reference.info.device or "CPU", None),
+        test=case.job(str(folder / "test.npz"), range(first, first + count), device, blender, overrides),
+        out=str(folder),
+        max_passes=budget,
+        max_seconds=case.seconds,
+        alpha=suite.alpha,
+        tolerance=case.tolerance,
+        resume=resume and (folder / "check.json").exists(),
+        fixed_reference=True,
+    )
+    start = time.perf_counter()
+    try:
+        verdict, summary = run_check(job, progress_factory(count), undecided=wc.Verdict.NO_EVIDENCE)
+    except BatchError as exc:
+        status = "skipped" if NO_GPU_MESSAGE in str(exc) else "error"
+        if status == "skipped":
+            shutil.rmtree(folder, ignore_errors=True)
+        return Outcome(case, device, status, message=str(exc), seconds=time.perf_counter() - start)
+    check = summary["check"]
+    message = summaries.verdict_line(summary).removeprefix("verdict: ")
+    if case.expect == "biased":
+        message += " (expected: biased)"
+    return Outcome(case, device, status_of(case, verdict), verdict.label, message,
+                   seconds=check["looks"][-1]["seconds"] if check["looks"] else 0.0, passes=check["passes"],
+                   folder=str(folder), summary=summary)  # fmt: skip
+
+
+# -- outputs ------------------------------------------------------------------------------------------------------
+
+
+def write_outputs(suite: Suite, outcomes: list[Outcome], out: Path, refs: Path) -> dict:
+    """``summary.json``, ``junit.xml`` and ``index.html`` (the dashboard) in `out`; returns the summary."""
+    from .dashboard import write_dashboard
+
+    out.mkdir(parents=True, exist_ok=True)
+    summary = {
+        "suite": suite.name,
+        "file": str(suite.path),
+        "refs": str(refs),
+        "alpha": suite.alpha,
+        "exit_code": exit_code(outcomes),
+        "counts": {
+            s: sum(o.status == s for o in outcomes) for s in ("passed", "failed", "inconclusive", "skipped", "error")
+        },  # fmt: skip
+        "cases": [_outcome_record(o, out) for o in outcomes],
+    }
+    text = json.dumps(summary, indent=2, allow_nan=False)
+    wc.formats.atomic_write(out / "summary.json", lambda f: f.write(text.encode()))
+    xml = junit_xml(suite, outcomes)
+    wc.formats.atomic_write(out / "junit.xml", lambda f: f.write(xml))
+    write_dashboard(out / "index.html", summary, outcomes, refs)
+    return summary
+
+
+def _outcome_record(o: Outcome, out: Path) -> dict:
+    record = {
+        "case": o.case.name,
+        "device": o.device,
+        "status": o.status,
+        "verdict": o.verdict,
+        "expect": o.case.expect,
+        "message": o.message,
+        "passes": o.passes,
+        "seconds": round(o.seconds, 3),
+        "report": os.path.relpath(Path(o.folder) / "report.html", out) if o.folder else None,
+        "largest_effect": None,
+    }
+    if o.summary and o.summary.get("top_tiles"):
+        top = max(o.summary["top_tiles"], key=lambda t: abs(t["rel_diff"] or 0.0))
+        record["largest_effect"] = {k: top[k] for k in ("rel_diff", "ci_low", "ci_high", "x", "y", "size", "channel")}
+    return record
+
+
+def junit_xml(suite: Suite, outcomes: list[Outcome]) -> bytes:
+    """JUnit XML as CI servers read it: a test case per case and device; `biased` where unexpected is a
+    failure, a case that could not run an error, a missing device a skip; inconclusive is a failure too (its
+    message says so), since the case did not pass."""
+    import xml.etree.ElementTree as ET
+
+    counts = {s: sum(o.status == s for o in outcomes) for s in ("failed", "inconclusive", "error", "skipped")}
+    root = ET.Element("testsuites")
+    group = ET.SubElement(
+        root,
+        "testsuite",
+        name=suite.name,
+        tests=str(len(outcomes)),
+        failures=str(counts["failed"] + counts["inconclusive"]),
+        errors=str(counts["error"]),
+        skipped=str(counts["skipped"]),
+        time=f"{sum(o.seconds for o in outcomes):.3f}",
+    )
+    for o in outcomes:
+        case = ET.SubElement(group, "testcase", classname=f"{suite.name}.{o.device}", name=o.case.name,
+                             time=f"{o.seconds:.3f}")  # fmt: skip
+        if o.status in ("failed", "inconclusive"):
+            ET.SubElement(case, "failure", message=f"{o.verdict}: {o.message}", type=o.status)
+        elif o.status == "error":
+            ET.SubElement(case, "error", message=o.message, type="error")
+        elif o.status == "skipped":
+            ET.SubElement(case, "skipped", message=o.message)
+        out = ET.SubElement(case, "system-out")
+        out.text = o.message + (f"\nreport: {Path(o.folder) / 'report.html'}" if o.folder else "")
+    ET.indent(root)
+    return ET.tostring(root, encoding="utf-8", xml_declaration=True)

@@ -1,0 +1,244 @@
+"""Regression suites (batch.suite, ``python -m batch suite``): the suite file and its one-line errors, verdicts to
+statuses and exit codes, JUnit XML, and real runs: bless, a refused re-bless, a passing run, a planted change
+named as failed, a missing device skipped, and the dashboard in a real browser."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
+
+from batch import suite as suites
+from batch.errors import BatchError
+from welch_core import Verdict
+
+ROOT = Path(__file__).resolve().parents[1]
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+def write_suite(tmp_path, text: str) -> Path:
+    path = tmp_path / "suite.toml"
+    path.write_text(text)
+    return path
+
+
+CASE = '[[case]]\nname = "a"\nscene = "corner"\n'
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("", "no [[case]] in the suite"),
+        ("[suite]\nalpha = 2.0\n" + CASE, "[suite] alpha must be a number in (0, 1), got 2.0"),
+        ("[sweet]\n" + CASE, "unknown table [sweet] (a suite has [suite], [defaults] and [[case]])"),
+        (CASE + "colour = 1\n", "case 'a': unknown key 'colour'"),
+        ('[[case]]\nname = "a b"\nscene = "corner"\n', "case 'a b': 'name' must be letters, digits, '-', '_' or '.'"),
+        ('[[case]]\nname = "a"\n', "case 'a': give 'scene' (a built-in scene) or 'blend' (a .blend file), one of"),
+        (CASE + 'blend = "x.blend"\n', "case 'a': give 'scene' (a built-in scene) or 'blend'"),
+        ('[[case]]\nname = "a"\nblend = "missing.blend"\n', "case 'a': blend file "),
+        (CASE + "resolution = [32]\n", "case 'a': 'resolution' must be [width, height] in pixels, got [32]"),
+        (CASE + "passes = 1\n", "case 'a': 'spp' and 'tile' must be positive and 'passes' at least 2"),
+        (CASE + 'spp = "4"\n', "case 'a': 'spp' must be a int, got '4'"),
+        (CASE + 'devices = ["TPU"]\n', "case 'a': 'devices' must be some of CPU, GPU, OPTIX, CUDA, HIP, METAL, ONEAPI"),
+        (CASE + 'tolerance = "1"\n', "case 'a': 'tolerance' must be a percentage such as 0.5%, got '1'"),
+        (CASE + 'expect = "different"\n', "case 'a': 'expect' must be 'same' or 'biased', got 'different'"),
+        (CASE + 'set = ["cycles.samples"]\n', "case 'a': 'set' 'cycles.samples': "),
+        (CASE + CASE, "case 'a': the name is used twice"),
+        ("[[case]\n", "is not readable TOML"),
+    ],
+)
+def test_bad_suite_files_are_refused_in_one_line(tmp_path, text, message):
+    path = write_suite(tmp_path, text)
+    with pytest.raises(BatchError, match=re.escape(message)) as caught:
+        suites.load_suite(str(path))
+    assert "\n" not in str(caught.value) and str(path) in str(caught.value)
+
+
+def test_a_suite_file_with_defaults(tmp_path):
+    (tmp_path / "s.blend").write_bytes(b"BLENDER")
+    path = write_suite(tmp_path, '[suite]\nname = "mine"\nalpha = 0.05\n[defaults]\nresolution = [16, 8]\n'
+                                 'tile = 4\n' + CASE + 'tolerance = "0.5%"\nexpect = "biased"\n'
+                                 '[[case]]\nname = "b"\nblend = "s.blend"\ntile = 8\ndevices = ["CPU", "OPTIX"]\n'
+                                 'set = ["cycles.max_bounces=4"]\nseconds = 30\n')  # fmt: skip
+    suite = suites.load_suite(str(path))
+    assert suite.name == "mine" and suite.alpha == 0.05
+    a, b = suite.cases
+    assert (a.resolution, a.tile, a.tolerance, a.expect, a.passes) == ((16, 8), 4, 0.005, "biased", 64)
+    assert b.blend == str(tmp_path / "s.blend") and b.tile == 8 and b.devices == ("CPU", "OPTIX")
+    assert b.overrides == ("cycles.max_bounces=4",) and b.seconds == 30.0
+    assert suite.select(["b*"]) == [b]
+    with pytest.raises(BatchError, match=re.escape("--filter z matches no case of")):
+        suite.select(["z"])
+
+
+def test_the_builtin_suite_names_real_scenes_and_valid_planted_changes():
+    from batch.overrides import parse_override
+    from batch.scenes import SCENES
+
+    suite = suites.load_suite("builtin")
+    assert len(suite.cases) >= 14
+    for case in suite.cases:
+        assert case.scene in SCENES and case.why
+        assert case.expect == "biased" or case.planted, case.name
+        if case.planted:
+            parse_override(case.planted)
+        assert suites.reference_path(suites.BUILTIN_REFS, case).is_file(), case.name
+
+
+def outcome(status, expect="same", verdict=None):
+    case = suites.Case(name="c", scene="corner", expect=expect)
+    return suites.Outcome(case, "CPU", status, verdict, "message")
+
+
+def test_statuses_and_exit_codes():
+    same, different = suites.Case("c", "corner"), suites.Case("c", "corner", expect="biased")
+    assert suites.status_of(same, Verdict.NO_EVIDENCE) == suites.status_of(same, Verdict.EQUIVALENT) == "passed"
+    assert suites.status_of(same, Verdict.BIASED) == "failed"
+    assert suites.status_of(different, Verdict.BIASED) == "passed"
+    assert suites.status_of(different, Verdict.NO_EVIDENCE) == "failed"  # a known difference that went away
+    assert suites.status_of(same, Verdict.INCONCLUSIVE) == "inconclusive"
+    assert suites.exit_code([outcome("passed"), outcome("skipped")]) == 0
+    assert suites.exit_code([outcome("inconclusive"), outcome("error"), outcome("failed")]) == 1
+    assert suites.exit_code([outcome("inconclusive"), outcome("error")]) == 2
+    assert suites.exit_code([outcome("inconclusive"), outcome("passed")]) == 3
+
+
+def test_junit_xml_counts_each_kind():
+    suite = suites.Suite(Path("s.toml"), "s", 0.01, ())
+    results = [outcome("passed", verdict="no_evidence"), outcome("failed", verdict="biased"), outcome("skipped"),
+               outcome("error"), outcome("inconclusive", verdict="inconclusive")]  # fmt: skip
+    root = ET.fromstring(suites.junit_xml(suite, results))
+    group = root.find("testsuite")
+    assert group.attrib | {"time": "0"} == {"name": "s", "tests": "5", "failures": "2", "errors": "1",
+                                            "skipped": "1", "time": "0"}  # fmt: skip
+    cases = group.findall("testcase")
+    assert [c.find("failure") is not None for c in cases] == [False, True, False, False, True]
+    assert cases[1].find("failure").attrib["message"] == "biased: message"
+    assert cases[2].find("skipped") is not None and cases[3].find("error") is not None
+
+
+# -- real runs --------------------------------------------------------------------------------------------------
+
+SMALL = """[suite]
+name = "small"
+[defaults]
+resolution = [16, 16]
+tile = 8
+passes = 12
+sampling_pattern = "TABULATED_SOBOL"
+[[case]]
+name = "walls"
+scene = "corner"
+why = "the corner scene"
+[[case]]
+name = "mirror"
+scene = "glossy_sharp"
+"""
+PLANTED = "cycles.film_exposure=1.2"  # exists in every scene: a planted change for all cases at once
+
+
+def batch(*args, check=None):
+    done = subprocess.run([sys.executable, "-m", "batch", *map(str, args)], capture_output=True, text=True)
+    if check is not None:
+        assert done.returncode == check, done.stdout[-3000:] + done.stderr[-3000:]
+    return done
+
+
+@pytest.fixture(scope="module")
+def blessed(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("suite")
+    path = write_suite(folder, SMALL)
+    done = batch("suite", "bless", path, "--refs", folder / "refs", check=0)
+    assert "walls: blessed: 12 passes" in done.stdout and "mirror: blessed" in done.stdout
+    return folder, path
+
+
+@pytest.mark.slow
+def test_bless_records_provenance_and_refuses_a_changed_reference(blessed, tmp_path):
+    folder, path = blessed
+    refs = tmp_path / "refs"
+    shutil.copytree(folder / "refs", refs)
+    record = json.loads((refs / "walls.json").read_text())
+    assert record["seeds"] == [0, 12] and record["passes"] == 12 and record["device"] == "CPU"
+    assert record["blender_version"] and record["build_hash"] and record["blessed"].startswith("20")
+    # The same scene again: re-blessed on new seeds.
+    done = batch("suite", "bless", path, "--refs", refs, "--filter", "walls", check=0)
+    assert "walls: re-blessed" in done.stdout
+    assert json.loads((refs / "walls.json").read_text())["seeds"] == [12, 24]
+    # A changed scene: refused, the old reference kept, the comparison's report next to it.
+    changed = write_suite(tmp_path, SMALL.replace('why = "the corner scene"', f'set = ["{PLANTED}"]'))
+    done = batch("suite", "bless", changed, "--refs", refs, "--filter", "walls", check=1)
+    assert "walls: refused: the new render differs from the stored one: verdict: biased" in done.stdout
+    assert (refs / "walls.rebless" / "report.html").is_file()
+    assert json.loads((refs / "walls.json").read_text())["seeds"] == [12, 24]
+    done = batch("suite", "bless", changed, "--refs", refs, "--filter", "walls", "--force", check=0)
+    assert "walls: forced" in done.stdout
+
+
+@pytest.mark.slow
+def test_run_passes_then_names_the_planted_change_and_skips_a_missing_device(blessed, tmp_path):
+    folder, path = blessed
+    refs = folder / "refs"
+    done = batch("suite", "run", path, "--refs", refs, "--out", tmp_path / "ok", check=0)
+    assert "suite: 2 passed" in done.stdout
+    summary = json.loads((tmp_path / "ok" / "summary.json").read_text())
+    assert [c["status"] for c in summary["cases"]] == ["passed", "passed"] and summary["exit_code"] == 0
+    assert (tmp_path / "ok" / summary["cases"][0]["report"]).is_file()
+    root = ET.parse(tmp_path / "ok" / "junit.xml").getroot()
+    assert root.find("testsuite").attrib["failures"] == "0"
+    # The same --out again is refused; --resume continues it.
+    again = batch("suite", "run", path, "--refs", refs, "--out", tmp_path / "ok", check=2)
+    assert "already exists: pass --resume" in again.stderr
+
+    done = batch("suite", "run", path, "--refs", refs, "--out", tmp_path / "planted", "--set", PLANTED, check=1)
+    assert "failed: walls [CPU], mirror [CPU]" in done.stdout
+    summary = json.loads((tmp_path / "planted" / "summary.json").read_text())
+    assert {c["verdict"] for c in summary["cases"]} == {"biased"}
+    assert summary["cases"][0]["largest_effect"]["rel_diff"] > 0.1
+
+    done = batch("suite", "run", path, "--refs", refs, "--out", tmp_path / "gpu", "--device", "OPTIX",
+                 "--filter", "walls", check=0)  # fmt: skip
+    summary = json.loads((tmp_path / "gpu" / "summary.json").read_text())
+    assert summary["cases"][0]["status"] == "skipped" and "Cycles found no GPU" in summary["cases"][0]["message"]
+
+
+@pytest.mark.slow
+def test_a_missing_reference_is_refused_before_anything_renders(tmp_path):
+    path = write_suite(tmp_path, SMALL)
+    done = batch("suite", "run", path, "--refs", tmp_path / "none", "--out", tmp_path / "out", check=2)
+    assert "no reference for walls, mirror in" in done.stderr and "run `suite bless` first" in done.stderr
+    done = batch("suite", "run", path, "--out", tmp_path / "out", check=2)
+    assert "--refs is required for" in done.stderr
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(CHROMIUM is None, reason="no chromium on PATH (apt-get install chromium; ./dev test does it)")
+def test_the_dashboard_in_a_browser(blessed, tmp_path):
+    playwright = pytest.importorskip("playwright.sync_api", reason="playwright is not installed")
+    folder, path = blessed
+    batch("suite", "run", path, "--refs", folder / "refs", "--out", tmp_path, "--set", PLANTED, check=1)
+    with playwright.sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=["--no-sandbox", "--disable-gpu"])
+        page = browser.new_page(viewport={"width": 1500, "height": 700})
+        errors = []
+        page.on("pageerror", lambda error: errors.append(str(error)))
+        page.goto((tmp_path / "index.html").as_uri())
+        assert errors == []
+        assert page.locator("#title").inner_text() == "Suite small: a case failed"
+        rows = page.locator("tr.case")
+        assert rows.count() == 2 and rows.first.get_attribute("data-status") == "failed"
+        # Every thumbnail decodes (reference, test, p-value map of both cases).
+        sizes = page.evaluate("[...document.images].map(i => i.complete && i.naturalWidth)")
+        assert len(sizes) == 6 and all(sizes)
+        page.locator("a", has_text="report").first.click()
+        page.wait_for_function("document.body.dataset.drawn === 'yes'", timeout=20000)
+        assert page.locator("#verdict").inner_text() == "Biased"
+        page.go_back()
+        page.screenshot(path=str(ROOT / "docs" / "screenshots" / "suite.png"), full_page=True)
+        browser.close()
