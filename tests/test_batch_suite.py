@@ -242,3 +242,16 @@ def test_the_dashboard_in_a_browser(blessed, tmp_path):
         page.go_back()
         page.screenshot(path=str(ROOT / "docs" / "screenshots" / "suite.png"), full_page=True)
         browser.close()
+
+
+@pytest.mark.slow
+def test_the_builtin_suite_passes_and_a_planted_change_fails_every_case(tmp_path):
+    """The CI job a renderer team would run: every case of `builtin` against the shipped references (rendered
+    with this build), then the same with the film exposure raised in every case."""
+    done = batch("suite", "run", "builtin", "--out", tmp_path / "same", check=0)
+    cases = suites.load_suite("builtin").cases
+    assert f"suite: {len(cases)} passed" in done.stdout
+    done = batch("suite", "run", "builtin", "--out", tmp_path / "planted", "--set", "cycles.film_exposure=1.1",
+                 check=1)  # fmt: skip
+    named = done.stdout.rpartition("; failed: ")[2].splitlines()[0].split(", ")
+    assert sorted(named) == sorted(f"{c.name} [CPU]" for c in cases if c.expect == "same")
