@@ -155,6 +155,14 @@ def build_parser() -> argparse.ArgumentParser:
         "run counts as independent of every other (unpaired test)",
     )
     i.add_argument("--renderer", default="unknown", help="renderer name to record")
+    i.add_argument(
+        "--layers",
+        type=lambda text: tuple(n.strip() for n in text.split(",") if n.strip()),
+        default=(),
+        metavar="NAME,...",
+        help="also read these layers of multilayer EXRs (each NAME.R/G/B, under any view-layer prefix) into "
+        "layers of the statistics file, tested by compare one by one (light components of other renderers)",
+    )
     i.add_argument("--on-nan", default="stop", choices=jobs.ON_NAN)
     i.add_argument("--out", required=True, metavar="STATS", help="statistics file to write (must not exist)")
 
@@ -343,7 +351,7 @@ def cmd_render(args) -> int:
 
 def cmd_ingest(args) -> int:
     from .lock import OutputLock
-    from .passes import add_pass
+    from .passes import add_layered_pass, channel_layers
     from .progress import Progress
 
     if args.seeds is not None and len(args.seeds) != len(args.passes):
@@ -353,26 +361,30 @@ def cmd_ingest(args) -> int:
         first = wc.read_exr(args.passes[0])
         info = wc.RunInfo(spp=args.spp, renderer=args.renderer)
         stats = wc.TileStats(first.shape[0], first.shape[1], args.tile, 3, info)
+        layers = {name: wc.TileStats(first.shape[0], first.shape[1], args.tile, 3, info) for name in args.layers}
         progress = Progress(len(args.passes), label="ingest")
         progress.start(0, args.out)
         negative = False
         for index, path in enumerate(args.passes):
             start = time.perf_counter()
             image = first if index == 0 else wc.read_exr(path)
+            images = {"combined": image}
+            if layers:
+                images |= channel_layers(wc.read_exr_channels(path), args.layers, path)
             if not negative and (image < 0).any():
                 negative = True
                 progress.warning(f"{path} has negative pixel values (a filter with negative lobes?): they are kept")
             seed = args.seeds[index] if args.seeds is not None else _content_seed(path)
             try:
-                if not add_pass(
-                    stats, image, seed, args.on_nan, lambda text, path=path: progress.warning(f"{path}: {text}")
+                if not add_layered_pass(
+                    stats, layers, images, seed, args.on_nan, lambda text, p=path: progress.warning(f"{p}: {text}")
                 ):
                     continue
             except wc.WelchInputError as exc:
                 raise wc.WelchInputError(f"{path}: {exc}") from None
             progress.pass_done(seed, time.perf_counter() - start)
         _refuse_existing(args.out)
-        wc.save_stats(args.out, stats)
+        wc.save_stats(args.out, stats, layers)
     progress.finished(args.out, stats.n)
     return EXIT_OK
 
@@ -405,7 +417,8 @@ def cmd_compare(args) -> int:
     ref, test = (wc.load_stats(path, pixels=args.full_maps) for path in (args.ref, args.test))
     previews = None if args.full_maps else (wc.load_preview(args.ref), wc.load_preview(args.test))
     result = wc.compare(ref, test, args.alpha, args.kind, args.pvalue_method, args.tile, args.tolerance)
-    return _write_and_print(args, ref, test, result, args.ref, args.test, previews)
+    layers = (wc.load_layers(args.ref, pixels=False), wc.load_layers(args.test, pixels=False))
+    return _write_and_print(args, ref, test, result, args.ref, args.test, previews, layers)
 
 
 def cmd_selftest(args) -> int:
@@ -418,12 +431,16 @@ def cmd_selftest(args) -> int:
     return _write_and_print(args, first, second, result, f"{name} (even passes)", f"{name} (odd passes)")
 
 
-def _write_and_print(args, ref, test, result, ref_name: str, test_name: str, previews=None) -> int:
+def _write_and_print(args, ref, test, result, ref_name: str, test_name: str, previews=None, layers=None) -> int:
     from . import summary as summaries
     from .report import write_report
 
     summary = summaries.summarize(result, ref, test, ref_name, test_name)
-    write_report(args.out, summary, result, ref, test, full_maps=args.full_maps, previews=previews)
+    tested = summaries.layers_summary(result, ref, test, *layers) if layers else None
+    if tested is not None:
+        summary["layers"] = tested[0]
+    layer_results = tested[1] if tested else None
+    write_report(args.out, summary, result, ref, test, args.full_maps, previews, layer_results)
     print(summaries.verdict_line(summary))
     for line in summaries.console_lines(summary):
         print(f"  {line}")
@@ -433,17 +450,22 @@ def _write_and_print(args, ref, test, result, ref_name: str, test_name: str, pre
 
 def cmd_merge(args) -> int:
     _refuse_existing(args.out)
-    merged = wc.load_stats(args.runs[0])
+    merged, layers = wc.load_stats(args.runs[0]), wc.load_layers(args.runs[0])
     for path in args.runs[1:]:
+        more = wc.load_layers(path)
+        if list(more) != list(layers):
+            raise BatchError(f"{path}: its layers ({', '.join(more) or 'none'}) differ from {args.runs[0]}'s "
+                             f"({', '.join(layers) or 'none'})")  # fmt: skip
         try:
             merged = merged.merge(wc.load_stats(path))
+            layers = {name: layer.merge(more[name]) for name, layer in layers.items()}
         except wc.WelchInputError as exc:
             raise wc.WelchInputError(f"{path}: {exc}") from None
     from .lock import OutputLock
 
     with OutputLock(args.out):
         _refuse_existing(args.out)
-        wc.save_stats(args.out, merged)
+        wc.save_stats(args.out, merged, layers)
     print(f"merge: {merged.n} passes from {len(args.runs)} files in {args.out}")
     return EXIT_OK
 
@@ -485,7 +507,16 @@ def cmd_suite(args) -> int:
         return EXIT_BIASED if any(item.status == "refused" for item in done) else EXIT_OK
     out = Path(args.out)
     outcomes = suites.run_suite(
-        suite, cases, refs, out, progress, args.blender, args.device, tuple(args.overrides), args.resume, say,
+        suite,
+        cases,
+        refs,
+        out,
+        progress,
+        args.blender,
+        args.device,
+        tuple(args.overrides),
+        args.resume,
+        say,
         args.seed_offset,
     )
     summary = suites.write_outputs(suite, outcomes, out, refs)

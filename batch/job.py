@@ -14,6 +14,7 @@ import dataclasses
 from dataclasses import dataclass
 
 from .errors import BatchError
+from .lobes import LOBES, parse_lobes
 from .seeds import MAX_PASSES, format_seeds, parse_seeds
 
 #: Cycles' largest render side (it clamps larger values) and largest samples per pixel (2**24).
@@ -60,10 +61,15 @@ class RenderJob:
     on_nan: str = "stop"
     checkpoint_every: int = 8
     blender: str | None = None
+    lobes: tuple[str, ...] = ()  # light components and light groups accumulated as layers (batch.lobes)
 
     def __post_init__(self):
         object.__setattr__(self, "seeds", tuple(self.seeds))
         object.__setattr__(self, "overrides", tuple(self.overrides))
+        object.__setattr__(self, "lobes", tuple(self.lobes))
+        unknown = [lobe for lobe in self.lobes if lobe not in LOBES]
+        if unknown:
+            raise BatchError(f"--lobes takes 'all' or some of {','.join(LOBES)}, got {unknown[0]!r}")
         if self.resolution is not None:
             object.__setattr__(self, "resolution", tuple(self.resolution))
         if not self.seeds:
@@ -112,6 +118,7 @@ class RenderJob:
             on_nan=args.on_nan,
             checkpoint_every=args.checkpoint_every,
             blender=args.blender,
+            lobes=args.lobes,
         )
 
     def to_argv(self) -> list[str]:
@@ -137,6 +144,8 @@ class RenderJob:
             argv += ["--checkpoint-every", str(self.checkpoint_every)]
         if self.blender is not None:
             argv += ["--blender", self.blender]
+        if self.lobes:
+            argv += ["--lobes", ",".join(self.lobes)]
         return [*argv, "--out", self.out]
 
 
@@ -177,6 +186,14 @@ def non_negative_int(text: str) -> int:
     if value < 0:
         raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {text!r}")
     return value
+
+
+def lobes_arg(text: str) -> tuple[str, ...]:
+    """argparse type: ``all`` or a comma-separated list of `batch.lobes.LOBES`."""
+    try:
+        return parse_lobes(text)
+    except BatchError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("--lobes ")) from None
 
 
 def seeds_arg(text: str) -> list[int]:
@@ -221,6 +238,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         'materials["Walls"].node_tree.nodes["Diffuse BSDF"].inputs["Color"].default_value=0.21,0.21,0.21,1',
     )
     parser.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")
+    parser.add_argument(
+        "--lobes",
+        type=lobes_arg,
+        default=(),
+        metavar="LIST",
+        help=f"also accumulate light components and light groups as layers of the statistics file: 'all' or some "
+        f"of {','.join(LOBES)} (compare and check then test each layer)",
+    )
     parser.add_argument(
         "--on-nan",
         default="stop",

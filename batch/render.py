@@ -21,6 +21,7 @@ import numpy as np
 from ._siblings import welch_core as wc
 from .errors import BatchError
 from .job import DEFAULT_SAMPLING_PATTERNS, GPU_BACKENDS, NO_GPU_MESSAGE
+from .lobes import PASS_PROPERTIES, layers_from_channels
 from .rna import jsonable, render_size
 from .scenes import BUILDER_VERSION, SCENES, build_scene
 
@@ -110,6 +111,7 @@ def configure_unbiased(
     spp: int = 1,
     resolution: tuple[int, int] | None = None,
     sampling_pattern: str | None = None,
+    lobes: tuple[str, ...] = (),
 ) -> list[dict]:
     """Set what a pass needs: Cycles, samples, device, no denoising or adaptive sampling, float EXR output.
 
@@ -144,7 +146,31 @@ def configure_unbiased(
     pattern = _sampling_pattern(scene, sampling_pattern)
     for struct, path, value in fixed_settings(scene, spp, resolution, pattern):
         _set(changes, struct, path.rpartition(".")[0], path.rpartition(".")[2], value)
+    if lobes:
+        _enable_lobes(changes, scene, lobes)
     return changes
+
+
+def _enable_lobes(changes: list[dict], scene: bpy.types.Scene, lobes: tuple[str, ...]) -> None:
+    """The light passes of `lobes` on the active view layer, saved as one single-part multilayer EXR a pass."""
+    layer = bpy.context.view_layer if bpy.context.scene == scene else scene.view_layers[0]
+    prefix = f"view_layers[{json.dumps(layer.name)}]"
+    for lobe in lobes:
+        for name in PASS_PROPERTIES.get(lobe, ()):
+            if name.startswith("cycles."):  # Cycles' own passes (volume) live on the layer's Cycles settings
+                _set(changes, layer.cycles, f"{prefix}.cycles", name.removeprefix("cycles."), True)
+            else:
+                _set(changes, layer, prefix, name, True)
+    if "lightgroups" in lobes:
+        _add_named_lightgroups(changes, scene, layer)
+    settings = scene.render.image_settings
+    if "media_type" in settings.bl_rna.properties:  # 5.0: the media type first, or the format is refused
+        _set(changes, settings, "render.image_settings", "media_type", "MULTI_LAYER_IMAGE")
+    _set(changes, settings, "render.image_settings", "file_format", "OPEN_EXR_MULTILAYER")
+    if "use_exr_interleave" in settings.bl_rna.properties:  # 5.0 writes multi-part files otherwise
+        _set(changes, settings, "render.image_settings", "use_exr_interleave", True)
+    _set(changes, settings, "render.image_settings", "exr_codec", "NONE")
+    _set(changes, settings, "render.image_settings", "color_depth", "32")
 
 
 def fixed_settings(scene, spp: int, resolution, pattern: str) -> list[tuple[object, str, object]]:
@@ -209,6 +235,23 @@ def check_fixed_settings(scene, spp: int, resolution, overrides: list[dict]) -> 
                 f"--set {change['override']} changes {path} ({change['old']!r} -> {change['new']!r}), which the "
                 f"job fixes: {advice}"
             )
+
+
+def _add_named_lightgroups(changes: list[dict], scene: bpy.types.Scene, layer) -> None:
+    """Light groups that objects or the world name but the view layer lacks are added to it (Blender ignores a
+    name the layer does not list), so ``--set objects["Lamp"].lightgroup=key`` is enough to make one."""
+    named = {obj.lightgroup for obj in scene.objects if getattr(obj, "lightgroup", "")}
+    if scene.world is not None and getattr(scene.world, "lightgroup", ""):
+        named.add(scene.world.lightgroup)
+    existing = {group.name for group in layer.lightgroups}
+    for name in sorted(named - existing):
+        layer.lightgroups.add(name=name)
+        changes.append({"path": f"view_layers[{json.dumps(layer.name)}].lightgroups", "old": None, "new": name})
+    if not len(layer.lightgroups):
+        raise RenderSetupError(
+            f"--lobes lightgroups: view layer {layer.name!r} has no light groups and no light names one "
+            '(set one with --set objects["Light"].lightgroup=NAME)'
+        )
 
 
 def _sampling_pattern(scene, requested: str | None) -> str:
@@ -339,10 +382,11 @@ class PassRenderer:
         Time of the last pass spent in ``render.render()`` and in saving plus reading the EXR.
     """
 
-    def __init__(self, scene: bpy.types.Scene, temp_dir: str | None = None):
+    def __init__(self, scene: bpy.types.Scene, temp_dir: str | None = None, lobes: tuple[str, ...] = ()):
         self.scene = scene
+        self.lobes = tuple(lobes)
         width, height = render_size(scene)
-        self.expected_bytes = pass_bytes(width, height)
+        self.expected_bytes = pass_bytes(width, height, 3 + 9 * len(self.lobes))  # at most 3 passes of RGB a lobe
         folder = temp_dir or choose_temp_dir(self.expected_bytes)
         remove_stale_passes(folder)
         handle, path = tempfile.mkstemp(prefix=f"{PASS_PREFIX}{os.getpid()}-", suffix=".exr", dir=folder)
@@ -359,6 +403,14 @@ class PassRenderer:
         numpy.ndarray
             H×W×3 float32, scene-linear, top row first, alpha dropped.
         """
+        return self._render(seed, wc.read_exr)
+
+    def render_layers(self, seed: int) -> dict[str, np.ndarray]:
+        """Render one pass with `seed` and return the image (``combined``) and the layers of the renderer's
+        `lobes` (see `batch.lobes.layers_from_channels`), each H×W×3 float32."""
+        return self._render(seed, lambda path: layers_from_channels(wc.read_exr_channels(path), self.lobes))
+
+    def _render(self, seed: int, read):
         self.scene.cycles.seed = seed
         # Setting scene.cycles.* does not tag the depsgraph: with persistent data Cycles would reuse the old seed.
         # A 'TIME' refresh re-syncs the integrator without rebuilding the BVH.
@@ -368,7 +420,7 @@ class PassRenderer:
         middle = time.perf_counter()
         try:
             bpy.data.images["Render Result"].save_render(self.path, scene=self.scene)
-            pixels = wc.read_exr(self.path)
+            pixels = read(self.path)
         except (RuntimeError, wc.WelchInputError) as exc:  # a failed save raises, or leaves a short file
             raise BatchError(self._save_failure(exc)) from None
         self.render_seconds = middle - start

@@ -40,11 +40,13 @@ def write_report(
     test: wc.TileStats,
     full_maps: bool = False,
     previews: tuple[np.ndarray | None, np.ndarray | None] | None = None,
+    layers: dict[str, wc.Comparison] | None = None,
 ) -> dict:
     """Write the report of a comparison into `out_dir` (created if missing); return the report dict (the
     summary of `batch.summary.summarize` and the files written). `full_maps` also writes the p-value map and
     the overlay at the image's resolution as PNG. `previews` are both sides' pixel sums shrunk to at most
-    `DISPLAY_MAX` a side (`welch_core.load_preview`), for runs loaded without their pixel sums."""
+    `DISPLAY_MAX` a side (`welch_core.load_preview`), for runs loaded without their pixel sums. `layers` are
+    the comparisons of the light components and light groups, whose rows the summary holds (``layers``)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = {"pvalues_exr": "pvalues.exr", "html": "report.html"}
@@ -53,7 +55,7 @@ def write_report(
         files |= _full_maps(out, result, test if test.mean_image is not None else ref)
     report = dict(summary, files=files)
     write_text(out / "report.json", json.dumps(report, indent=2, allow_nan=False))
-    write_text(out / "report.html", render_html(report, result, ref, test, previews))
+    write_text(out / "report.html", render_html(report, result, ref, test, previews, layers))
     return report
 
 
@@ -75,7 +77,9 @@ def _full_maps(out: Path, result: wc.Comparison, run: wc.TileStats) -> dict:
 # -- the page ------------------------------------------------------------------------------------------------
 
 
-def render_html(report: dict, result: wc.Comparison, ref: wc.TileStats, test: wc.TileStats, previews=None) -> str:
+def render_html(
+    report: dict, result: wc.Comparison, ref: wc.TileStats, test: wc.TileStats, previews=None, layers=None
+) -> str:
     data = {"summary": report, **_tile_data(result), **_pictures(result, ref, test, previews)}
     text = json.dumps(data, allow_nan=False, separators=(",", ":")).replace("</", "<\\/")
     colour = {"biased": "#b00020", "inconclusive": "#a06000"}.get(report["verdict"], "#1b7f3b")
@@ -87,6 +91,7 @@ def render_html(report: dict, result: wc.Comparison, ref: wc.TileStats, test: wc
         "{{NEXT_STEP}}": html.escape(report.get("next_step", "")),
         "{{HISTOGRAM}}": histogram_svg(result),
         "{{SELFTEST}}": _selftest_line(report),
+        "{{LAYERS}}": layers_section(report.get("layers"), layers or {}),
     }
     head, _, tail = TEMPLATE.read_text(encoding="utf-8").partition("{{DATA}}")
     for key, value in replacements.items():
@@ -103,6 +108,53 @@ def _headline(report: dict) -> str:
         parts.append(f"global p {fmt.p_is(report['p_value'])}")
     parts.append(f"{report['test']} test")
     return ", ".join(parts)
+
+
+def layers_section(summary: dict | None, comparisons: dict[str, wc.Comparison]) -> str:
+    """A row per light component and light group: its share of the image, verdict, p, significant tiles, largest
+    difference with its interval and its p-value map; which components explain the image's difference; the
+    check that the components add up to the image."""
+    if not summary:
+        return ""
+    rows = []
+    for row in summary["layers"]:
+        c = comparisons.get(row["name"])
+        picture = ""
+        if c is not None:
+            url = _png(wc.colorize(wc.colormap.map_values(c.pvalues, "log10")))
+            picture = f'<img class="layer-map" alt="p-value map of {html.escape(row["name"])}" src="{url}">'
+        largest = row["largest"]
+        difference = (
+            f"{fmt.percent(largest['rel_diff'])} [{fmt.percent(largest['ci_low'])}, {fmt.percent(largest['ci_high'])}]"
+            f" ({largest['channel']} at {largest['x']}, {largest['y']})"
+            if largest
+            else "—"
+        )
+        share = f"{row['share']:.1%}" if row["share"] is not None else "—"
+        rows.append(
+            f'<tr class="layer" data-layer="{html.escape(row["name"])}"><td>{html.escape(row["name"])}</td>'
+            f'<td class="num">{share}</td><td>{html.escape(row["verdict_text"])}</td>'
+            f'<td class="num">{fmt.p_value(row["p_value"])}</td><td class="num">{row["significant_tiles"]}</td>'
+            f"<td>{difference}</td><td>{picture}</td></tr>"
+        )
+    notes = []
+    if summary["explanation"]:
+        notes.append(summary["explanation"])
+    for side, check in summary["component_sum"].items():
+        if check is None:
+            notes.append(f"{side}: the components were not all rendered, so their sum was not checked")
+        elif not check["ok"]:
+            notes.append(f"{side}: the components do not add up to the image (largest relative difference "
+                         f"{check['relative_error']:.2g}): a component is missing or counted twice")  # fmt: skip
+        else:
+            notes.append(f"{side}: the components add up to the image (within {check['relative_error']:.1g})")
+    head = "<tr><th>layer</th><th>share</th><th>verdict</th><th>p</th><th>significant tiles</th>"
+    head += "<th>largest difference (interval)</th><th>map</th></tr>"
+    items = "".join(f"<li>{html.escape(n)}</li>" for n in notes)
+    return (
+        '<section style="flex:1 1 100%" id="layers"><h2>Light components and light groups</h2>'
+        f'<table class="grid">{head}{"".join(rows)}</table><ul>{items}</ul></section>'
+    )
 
 
 def _selftest_line(report: dict) -> str:

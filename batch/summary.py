@@ -203,6 +203,74 @@ def equivalence_sentence(summary: dict[str, Any]) -> str | None:
     )
 
 
+def layers_summary(
+    combined: wc.Comparison,
+    ref: wc.TileStats,
+    test: wc.TileStats,
+    ref_layers: dict[str, wc.TileStats],
+    test_layers: dict[str, wc.TileStats],
+) -> tuple[dict[str, Any], dict[str, wc.Comparison]] | None:
+    """Every layer both runs have (light components, light groups) tested as the image is, which components
+    explain a difference of the image, and the check that the components add up to the image in each run; with
+    the layers' comparisons (for the report's maps). None when the runs have no layer in common."""
+    from .lobes import COMPONENT_SUM_TOLERANCE, COMPONENTS
+
+    names = [name for name in ref_layers if name in test_layers]
+    if not names:
+        return None
+    rows, comparisons = [], {}
+    for name in names:
+        c = wc.compare(ref_layers[name], test_layers[name], combined.alpha, combined.test, combined.pvalue_method)
+        comparisons[name] = c
+        rows.append({
+            "name": name,
+            "verdict": c.verdict.label,
+            "verdict_text": c.verdict.text,
+            "p_value": _num(c.p_value),
+            "significant_tiles": int(c.significant.sum()),
+            "share": _num(float(ref_layers[name].sums.sum() / ref.sums.sum())) if ref.sums.sum() else None,
+            "largest": _largest_effect(c),
+        })  # fmt: skip
+    biased = [r["name"] for r in rows if r["verdict"] == wc.Verdict.BIASED and r["name"] in COMPONENTS]
+    sums = {}
+    for side, run, layers in (("reference", ref, ref_layers), ("test", test, test_layers)):
+        if all(name in layers for name in COMPONENTS):
+            error = lobes_sum_error(run, layers)
+            sums[side] = {"relative_error": error, "ok": error <= COMPONENT_SUM_TOLERANCE}
+        else:
+            sums[side] = None
+    if combined.verdict != wc.Verdict.BIASED:
+        explanation = None
+    elif biased:
+        explanation = f"the difference is in {', '.join(biased)}"
+    else:
+        explanation = "no single component is biased on its own: the difference is spread over several"
+    return {"layers": rows, "explained_by": biased, "explanation": explanation, "component_sum": sums}, comparisons
+
+
+def lobes_sum_error(run: wc.TileStats, layers: dict[str, wc.TileStats]) -> float:
+    from .lobes import COMPONENTS, component_sum_error
+
+    return component_sum_error(run.sums, [layers[name].sums for name in COMPONENTS])
+
+
+def _largest_effect(c: wc.Comparison) -> dict[str, Any] | None:
+    """The tile-channel with the largest relative difference among those tested."""
+    valid = (c.reasons == wc.Reason.VALID) & np.isfinite(c.effect.rel_diff)
+    if not valid.any():
+        return None
+    magnitude = np.where(valid, np.abs(c.effect.rel_diff), -1.0)
+    row, col, ch = np.unravel_index(int(np.argmax(magnitude)), magnitude.shape)
+    return {
+        "x": int(col * c.tile),
+        "y": int(row * c.tile),
+        "channel": "RGB"[ch] if c.pvalues.shape[-1] == 3 else int(ch),
+        "rel_diff": _num(c.effect.rel_diff[row, col, ch]),
+        "ci_low": _num(c.effect.ci_low[row, col, ch]),
+        "ci_high": _num(c.effect.ci_high[row, col, ch]),
+    }
+
+
 def top_tiles(c: wc.Comparison, count: int = TOP_TILES) -> list[dict[str, Any]]:
     """The most significant tiles with their effect sizes (the channel with the smallest p)."""
     flat = np.where(np.isfinite(c.tile_pvalues), c.tile_pvalues, np.inf).ravel()
@@ -388,6 +456,27 @@ def console_lines(summary: dict[str, Any]) -> list[str]:
         lines.append(equivalence)
     lines += [f"note: {note}" for note in summary["notes"]]
     lines += [f"warning: {warning}" for warning in summary["warnings"]]
+    lines += layer_lines(summary.get("layers"))
+    return lines
+
+
+def layer_lines(layers: dict[str, Any] | None) -> list[str]:
+    """A line per light component or light group, and what they say together."""
+    if not layers:
+        return []
+    lines = []
+    for row in layers["layers"]:
+        largest = row["largest"]
+        effect = f", largest difference {fmt.percent(largest['rel_diff'])}" if largest else ""
+        lines.append(f"layer {row['name']}: {row['verdict_text']} (p {fmt.p_is(row['p_value'])}{effect})")
+    if layers["explanation"]:
+        lines.append(layers["explanation"])
+    for side, check in layers["component_sum"].items():
+        if check is not None and not check["ok"]:
+            lines.append(
+                f"warning: the {side}'s components do not add up to its image (relative difference "
+                f"{check['relative_error']:.2g}): a component is missing or counted twice"
+            )
     return lines
 
 

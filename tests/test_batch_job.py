@@ -36,6 +36,7 @@ FULL = RenderJob(
     on_nan="keep",
     checkpoint_every=3,
     blender="/opt/blender-4.5/blender",
+    lobes=("diffuse", "glossy", "lightgroups"),
 )
 
 
@@ -140,3 +141,13 @@ def test_the_render_path_imports_no_scipy_and_no_openexr():
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "[]"
+
+
+def test_lobes_are_parsed_in_order_and_checked():
+    assert parse(["--seeds", "0:2", "--spp", "1", "--out", "a.npz", "--lobes", "glossy, diffuse"]).lobes == (
+        "diffuse",
+        "glossy",
+    )
+    assert len(parse(["--seeds", "0:2", "--spp", "1", "--out", "a.npz", "--lobes", "all"]).lobes) == 7
+    with pytest.raises(BatchError, match="--lobes takes 'all' or some of diffuse,glossy,.*got 'sss'"):
+        RenderJob(out="a.npz", seeds=[1], lobes=("sss",))

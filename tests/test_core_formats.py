@@ -249,6 +249,46 @@ def test_previews_of_large_images_are_stored_and_read_alone(tmp_path):
         load_preview(tmp_path / "bad.npz")
 
 
+def test_layers_round_trip_and_only_files_with_layers_are_version_3(tmp_path):
+    from welch_core import load_layers
+    from welch_core.formats import LAYERS_VERSION
+
+    run = make_run()
+    rng = np.random.default_rng(9)
+    layers = {
+        name: TileStats.from_sums(
+            run.sums * w + rng.normal(size=run.sums.shape),
+            run.seeds,
+            24,
+            40,
+            8,
+            pixel_sum=run.pixel_sum * w,
+        )  # fmt: skip
+        for name, w in (("diffuse", 0.7), ("lightgroup:key light", 0.3))
+    }
+    save_stats(tmp_path / "plain.npz", run)
+    save_stats(tmp_path / "layers.npz", run, layers)
+    assert int(np.load(tmp_path / "plain.npz")["version"]) == FORMAT_VERSION == 2
+    assert int(np.load(tmp_path / "layers.npz")["version"]) == LAYERS_VERSION == 3
+    assert load_layers(tmp_path / "plain.npz") == {}
+    back = load_layers(tmp_path / "layers.npz")
+    assert list(back) == ["diffuse", "lightgroup:key light"]
+    for name, layer in layers.items():
+        assert_array_equal(back[name].sums, layer.sums)
+        assert_array_equal(back[name].pixel_sum, layer.pixel_sum)
+        assert back[name].seeds == run.seeds
+    assert load_layers(tmp_path / "layers.npz", pixels=False)["diffuse"].pixel_sum is None
+    assert_array_equal(load_stats(tmp_path / "layers.npz").sums, run.sums)  # the image as before
+    other = make_run(seed=1, n=3)
+    with pytest.raises(WelchInputError, match="layer 'x' must have the seeds, tiles and channels of the image"):
+        save_stats(tmp_path / "bad.npz", run, {"x": other})
+    arrays = dict(np.load(tmp_path / "layers.npz"))
+    arrays["layer1_sums"] = arrays["layer1_sums"][:2]
+    np.savez(tmp_path / "short.npz", **arrays)
+    with pytest.raises(StatsFileError, match=re.escape("is damaged: 'layer1_sums' has shape (2, 3, 5, 3)")):
+        load_layers(tmp_path / "short.npz")
+
+
 def test_load_foreign_files(tmp_path):
     foreign = tmp_path / "foreign.npz"
     np.savez(foreign, image=np.zeros((4, 4)), labels=np.arange(3))
@@ -280,11 +320,11 @@ def test_load_never_unpickles(tmp_path):
 @pytest.mark.parametrize(
     ("version", "message"),
     [
-        (np.array(3), "has format version 3; this tool reads versions 1 and 2"),
+        (np.array(4), "has format version 4; this tool reads versions 1 to 3"),
         (np.array(1.7), "has a format version that is not an integer: 1.7"),
         (np.array("abc"), "has a format version that is not an integer: 'abc'"),
         (np.array([1, 1]), "has a format version that is not an integer: [1, 1]"),
-        (None, "has no format version; this tool reads versions 1 and 2"),
+        (None, "has no format version; this tool reads versions 1 to 3"),
     ],
 )
 def test_load_wrong_version(tmp_path, version, message):

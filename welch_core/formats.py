@@ -42,11 +42,14 @@ from .colormap import shrink
 from .errors import StatsFileError, WelchInputError
 from .tiles import MAX_IMAGE_SIDE, RunInfo, TileStats
 
-__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "atomic_write", "load_stats", "save_stats"]
+__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "atomic_write", "load_layers", "load_stats", "save_stats"]
 
 FORMAT_NAME = "welch-bias-stats"
 FORMAT_VERSION = 2
-READABLE_VERSIONS = (1, 2)
+#: Files with layers (light components, light groups) are version 3; without, version 2 as before, so that a
+#: tool that reads version 2 still reads every file without layers.
+LAYERS_VERSION = 3
+READABLE_VERSIONS = (1, 2, 3)
 
 #: Seeds are non-negative and fit int64 (ingested passes of unknown seed get a 62-bit id from their content).
 MAX_SEED_VALUE = 2**63 - 1
@@ -74,11 +77,18 @@ def atomic_write(path: str | os.PathLike, write: Callable, verify: Callable[[Pat
         raise
 
 
-def save_stats(path: str | os.PathLike, stats: TileStats) -> None:
-    """Write `stats` to `path` atomically (see the module docstring for the format).
+def save_stats(path: str | os.PathLike, stats: TileStats, layers: dict[str, TileStats] | None = None) -> None:
+    """Write `stats` to `path` atomically (see the module docstring for the format), with `layers` (more images
+    of the same passes: light components, light groups) where given.
 
     Raises WelchInputError with one line (naming the file and the reason) when the file can't be written.
     """
+    layers = layers or {}
+    for name, layer in layers.items():
+        if not isinstance(name, str) or not name or len(name) > 200:
+            raise WelchInputError(f"a layer's name must be a non-empty string, got {name!r}")
+        if layer.seeds != stats.seeds or layer.grid_shape != stats.grid_shape or layer.tile != stats.tile:
+            raise WelchInputError(f"layer {name!r} must have the seeds, tiles and channels of the image")
     sums = stats.sums
     nonfinite = [seed for seed, s in zip(stats.seeds, sums, strict=True) if not np.isfinite(s).all()]
     meta = {
@@ -89,9 +99,11 @@ def save_stats(path: str | os.PathLike, stats: TileStats) -> None:
         "info": stats.info.to_json(),
         "nonfinite_seeds": nonfinite,
     }
+    if layers:
+        meta["layers"] = list(layers)
     arrays = {
         "format": np.array(FORMAT_NAME),
-        "version": np.array(FORMAT_VERSION, dtype=np.int64),
+        "version": np.array(LAYERS_VERSION if layers else FORMAT_VERSION, dtype=np.int64),
         "meta": np.array(json.dumps(meta, sort_keys=True, allow_nan=False)),
         "seeds": np.array(stats.seeds, dtype=np.int64),
         "sums": sums,
@@ -100,6 +112,10 @@ def save_stats(path: str | os.PathLike, stats: TileStats) -> None:
         arrays["pixel_sum"] = stats.pixel_sum
         if max(stats.height, stats.width) > PREVIEW_SIDE:
             arrays["preview_sum"] = shrink(stats.pixel_sum, PREVIEW_SIDE)
+    for index, layer in enumerate(layers.values()):
+        arrays[f"layer{index}_sums"] = layer.sums
+        if layer.pixel_sum is not None:
+            arrays[f"layer{index}_pixel_sum"] = layer.pixel_sum
 
     def write(f) -> None:
         # zipfile directly instead of np.savez: the archive is closed on every path, so a failed write raises
@@ -127,6 +143,12 @@ def load_stats(path: str | os.PathLike, pixels: bool = True) -> TileStats:
     StatsFileError with one line. Without `pixels` the pixel sums are not read (a 4K run's are 100 MB): enough
     for any test, and `load_preview` gives a picture."""
     return _read(path, lambda reader: reader.stats(pixels))
+
+
+def load_layers(path: str | os.PathLike, pixels: bool = True) -> dict[str, TileStats]:
+    """The layers of a statistics file (light components, light groups), by name; empty for a file without.
+    Checked as `load_stats` checks the image."""
+    return _read(path, lambda reader: reader.layers(pixels))
 
 
 def load_preview(path: str | os.PathLike) -> np.ndarray | None:
@@ -247,14 +269,37 @@ class _Reader:
         if "format" not in self.members or self.scalar_or_none("format", "U") != FORMAT_NAME:
             raise StatsFileError(f"{self.name!r} is not a {FORMAT_NAME} file")
         if "version" not in self.members:
-            raise StatsFileError(f"{self.name!r} has no format version; this tool reads versions 1 and 2")
+            raise StatsFileError(f"{self.name!r} has no format version; this tool reads versions 1 to 3")
         version = self.array("version", "iufcUSb", None)
         if version.shape != () or version.dtype.kind not in "iu":
             raise StatsFileError(f"{self.name!r} has a format version that is not an integer: {_short(version)}")
         version = int(version)
         if version not in READABLE_VERSIONS:
-            raise StatsFileError(f"{self.name!r} has format version {version}; this tool reads versions 1 and 2")
+            raise StatsFileError(f"{self.name!r} has format version {version}; this tool reads versions 1 to 3")
         return version
+
+    def layers(self, pixels: bool) -> dict[str, TileStats]:
+        image = self.stats(pixels=False)
+        names = self.meta().get("layers", [])
+        if (
+            not isinstance(names, list)
+            or not all(isinstance(n, str) and n for n in names)
+            or len(set(names)) < len(names)
+        ):
+            raise self.fail(f"metadata 'layers' must be a list of distinct names, got {_short(names)}")
+        seeds = np.array(image.seeds, dtype=np.int64)
+        out = {}
+        for index, name in enumerate(names):
+            sums = self.array(f"layer{index}_sums", "f", image.sums.shape)
+            self.check_finite(sums, seeds, self.meta().get("nonfinite_seeds", []))
+            pixel_sum = None
+            if pixels:
+                shape = (image.height, image.width, image.channels)
+                pixel_sum = self.array(f"layer{index}_pixel_sum", "f", shape, required=False)
+            out[name] = TileStats.from_sums(
+                sums, image.seeds, image.height, image.width, image.tile, image.info, pixel_sum
+            )
+        return out
 
     def preview(self) -> np.ndarray | None:
         if "preview_sum" not in self.members:

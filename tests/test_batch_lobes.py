@@ -1,0 +1,201 @@
+"""Light components and light groups (batch.lobes, ``--lobes``, ``ingest --layers``): the pass arithmetic with
+the names of Blender 5.0 and of 3.4, the layers through ingest, merge and compare, and real Cycles renders where a
+change of one lobe shows in that lobe only."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import welch_core as wc
+from batch import cli, lobes
+from batch.errors import BatchError
+from welch_core.exr import write_exr_channels
+
+
+def test_parse_lobes():
+    assert lobes.parse_lobes("all") == lobes.LOBES
+    assert lobes.parse_lobes("glossy, diffuse") == ("diffuse", "glossy")
+    with pytest.raises(BatchError, match=re.escape("--lobes takes 'all' or some of diffuse,glossy,transmission,")):
+        lobes.parse_lobes("diffuse,sss")
+
+
+def pass_channels(rng, names: dict[str, str], shape=(4, 6), prefix="ViewLayer.") -> dict[str, np.ndarray]:
+    """Channels of a multilayer pass: each colour-split lobe's direct, indirect and colour, the additive ones, and
+    Combined as their sum, under the names of one Blender version (`names`: component part -> pass name)."""
+    channels, combined = {}, np.zeros((*shape, 3), np.float32)
+    for lobe in ("Diffuse", "Glossy", "Transmission"):
+        d, i, c = (rng.uniform(0.1, 1.0, (*shape, 3)).astype(np.float32) for _ in range(3))
+        for part, value in (("Direct", d), ("Indirect", i), ("Color", c)):
+            for k, ch in enumerate("RGB"):
+                channels[f"{prefix}{names[lobe + ' ' + part]}.{ch}"] = value[..., k]
+        combined += (d + i) * c
+    for name in ("Volume Direct", "Volume Indirect", "Emission", "Environment"):
+        value = rng.uniform(0.0, 0.2, (*shape, 3)).astype(np.float32)
+        for k, ch in enumerate("RGB"):
+            channels[f"{prefix}{names[name]}.{ch}"] = value[..., k]
+        combined += value
+    for k, ch in enumerate("RGBA"):
+        channels[f"{prefix}Combined.{ch}"] = combined[..., k] if k < 3 else np.ones(shape, np.float32)
+    for k, ch in enumerate("RGB"):
+        channels[f"{prefix}Combined_key.{ch}"] = combined[..., k] * 0.5
+    return channels
+
+
+NAMES_50 = {n: n for n in ("Diffuse Direct", "Diffuse Indirect", "Diffuse Color", "Glossy Direct", "Glossy Indirect",
+            "Glossy Color", "Transmission Direct", "Transmission Indirect", "Transmission Color", "Volume Direct",
+            "Volume Indirect", "Emission", "Environment")}  # fmt: skip
+OLD_NAMES = ("DiffDir", "DiffInd", "DiffCol", "GlossDir", "GlossInd", "GlossCol", "TransDir", "TransInd", "TransCol",
+             "VolumeDir", "VolumeInd", "Emit", "Env")  # fmt: skip
+NAMES_34 = dict(zip(NAMES_50, OLD_NAMES, strict=True))
+
+
+@pytest.mark.parametrize("names", [NAMES_50, NAMES_34], ids=["blender-5.0", "blender-3.4"])
+def test_components_add_up_to_combined_with_either_blenders_names(names):
+    channels = pass_channels(np.random.default_rng(1), names)
+    layers = lobes.layers_from_channels(channels, lobes.LOBES)
+    assert list(layers) == ["combined", *lobes.COMPONENTS, "lightgroup:key"]
+    total = sum(layers[name] for name in lobes.COMPONENTS)
+    np.testing.assert_allclose(total, layers["combined"], rtol=1e-6)
+    np.testing.assert_allclose(layers["lightgroup:key"], layers["combined"] * 0.5, rtol=1e-6)
+    assert lobes.component_sum_error(layers["combined"], [layers[n] for n in lobes.COMPONENTS]) < 1e-6
+    missing = [layers[n] for n in lobes.COMPONENTS if n != "glossy"]
+    assert lobes.component_sum_error(layers["combined"], missing) > 0.01
+    with pytest.raises(BatchError, match="the pass has no 'Glossy Direct' layer"):
+        lobes.layers_from_channels({k: v for k, v in channels.items() if "Gloss" not in k}, ("glossy",))
+
+
+def write_layered_passes(folder, seeds, glossy_scale=1.0, drop=None):
+    """Multilayer EXRs of another renderer: layers 'diffuse' and 'glossy' and their sum as RGB."""
+    paths = []
+    for seed in seeds:
+        rng = np.random.default_rng(seed)
+        diffuse = rng.exponential(0.4, (32, 48, 3)).astype(np.float32)
+        glossy = (rng.exponential(0.2, (32, 48, 3)) * glossy_scale).astype(np.float32)
+        channels = {}
+        for name, image in (("diffuse", diffuse), ("glossy", glossy), ("", diffuse + glossy)):
+            for k, ch in enumerate("RGB"):
+                channels[f"{name}.{ch}" if name else ch] = image[..., k]
+        if drop:
+            channels = {k: v for k, v in channels.items() if not k.startswith(drop)}
+        path = folder / f"pass_{seed:03d}.exr"
+        write_exr_channels(path, channels)
+        paths.append(str(path))
+    return paths
+
+
+def ingest_layers(tmp_path, name, seeds, glossy_scale=1.0):
+    folder = tmp_path / name
+    folder.mkdir()
+    paths = write_layered_passes(folder, seeds, glossy_scale)
+    out = str(tmp_path / f"{name}.npz")
+    args = ["ingest", *paths, "--spp", "1", "--tile", "8", "--layers", "diffuse,glossy", "--out", out]
+    assert cli.main([*args, "--seeds", ",".join(map(str, seeds))]) == 0
+    return out
+
+
+def test_ingest_merge_and_compare_test_every_layer(tmp_path, capsys):
+    ref = ingest_layers(tmp_path, "ref", range(0, 24))
+    test = ingest_layers(tmp_path, "test", range(100, 124), glossy_scale=1.15)
+    layers = wc.load_layers(test)
+    assert list(layers) == ["diffuse", "glossy"] and layers["glossy"].n == 24
+    assert cli.main(["compare", ref, test, "--out", str(tmp_path / "r")]) == cli.EXIT_BIASED
+    out = capsys.readouterr().out
+    assert "layer glossy: biased" in out and "layer diffuse: no evidence of bias" in out
+    assert "the difference is in glossy" in out
+    report = json.loads((tmp_path / "r" / "report.json").read_text())
+    rows = {row["name"]: row for row in report["layers"]["layers"]}
+    assert rows["glossy"]["verdict"] == "biased" and rows["diffuse"]["verdict"] == "no_evidence"
+    assert 0.1 < rows["glossy"]["largest"]["rel_diff"] < 0.6 and 0.55 < rows["diffuse"]["share"] < 0.8
+    assert report["layers"]["explained_by"] == ["glossy"]
+    assert report["layers"]["component_sum"] == {"reference": None, "test": None}  # not every component
+    html = (tmp_path / "r" / "report.html").read_text()
+    assert html.count('<tr class="layer"') == 2 and 'alt="p-value map of glossy"' in html
+    # Merge keeps the layers; runs with other layers do not merge.
+    more = ingest_layers(tmp_path, "more", range(200, 208))
+    assert cli.main(["merge", ref, more, "--out", str(tmp_path / "merged.npz")]) == 0
+    assert wc.load_layers(tmp_path / "merged.npz")["glossy"].n == 32
+    plain = tmp_path / "plain.npz"
+    wc.save_stats(plain, wc.load_stats(more))
+    assert cli.main(["merge", ref, str(plain), "--out", str(tmp_path / "m2.npz")]) == cli.EXIT_USAGE
+    assert "its layers (none) differ from" in capsys.readouterr().err
+
+
+def test_ingest_names_a_missing_layer(tmp_path, capsys):
+    folder = tmp_path / "p"
+    folder.mkdir()
+    paths = write_layered_passes(folder, range(2), drop="glossy")
+    args = ["ingest", *paths, "--spp", "1", "--tile", "8", "--layers", "glossy", "--out", str(tmp_path / "x.npz")]
+    assert cli.main(args) == cli.EXIT_USAGE
+    assert "has no layer 'glossy' with R, G, B (its layers: diffuse)" in capsys.readouterr().err
+
+
+# -- real renders ------------------------------------------------------------------------------------------------
+
+
+def render(tmp_path, name, seeds, *extra):
+    out = tmp_path / f"{name}.npz"
+    done = subprocess.run(
+        [sys.executable, "-m", "batch", "render", "--scene", "glossy_rough", "--seeds", seeds, "--spp", "1",
+         "--resolution", "64", "64", "--tile", "16", "--sampling-pattern", "TABULATED_SOBOL", "--out", str(out),
+         *extra],
+        capture_output=True, text=True,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    return str(out)
+
+
+GLOSSY_ROUGHNESS = 'materials["Object"].node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value'
+WALLS = 'materials["Walls"].node_tree.nodes["Diffuse BSDF"].inputs["Color"].default_value'
+
+
+def compare_layers(tmp_path, ref, test, name):
+    out = tmp_path / name
+    code = cli.main(["compare", ref, test, "--out", str(out)])
+    report = json.loads((out / "report.json").read_text())
+    return code, report, {row["name"]: row["verdict"] for row in report["layers"]["layers"]}
+
+
+@pytest.mark.slow
+def test_a_change_of_one_lobe_shows_in_that_lobe(tmp_path):
+    """Cycles with every component: Filter Glossy on is biased in glossy, not in diffuse; a wall colour change is
+    biased in diffuse, not in glossy; the components add up to the image in every run."""
+    ref = render(tmp_path, "ref", "0:48", "--lobes", "all")
+    blur = render(tmp_path, "blur", "100:148", "--lobes", "all", "--set", "cycles.blur_glossy=1.0")
+    walls = render(tmp_path, "walls", "200:248", "--lobes", "all", "--set", f"{WALLS}=0.3,0.3,0.3,1")
+    layers = wc.load_layers(ref)
+    assert list(layers) == list(lobes.COMPONENTS)  # no light group in this scene: none asked for by 'all'
+    code, report, verdicts = compare_layers(tmp_path, ref, blur, "blur")
+    assert code == cli.EXIT_BIASED and verdicts["glossy"] == "biased" and verdicts["diffuse"] == "no_evidence"
+    assert report["layers"]["component_sum"]["reference"]["ok"] and report["layers"]["component_sum"]["test"]["ok"]
+    code, report, verdicts = compare_layers(tmp_path, ref, walls, "walls")
+    assert code == cli.EXIT_BIASED and verdicts["diffuse"] == "biased" and verdicts["glossy"] != "biased"
+    assert "diffuse" in report["layers"]["explained_by"] and "glossy" not in report["layers"]["explained_by"]
+
+
+@pytest.mark.slow
+def test_a_light_strength_change_is_found_in_its_light_group(tmp_path):
+    """Two light groups in the many-lights scene (set up with overrides): a stronger light shows in its group."""
+    groups = [f'objects["Small{i:02d}"].lightgroup={"warm" if i < 8 else "cool"}' for i in range(16)]
+    setup = ["--scene", "many_lights"]
+    extra = ["--lobes", "lightgroups", *[a for g in groups for a in ("--set", g)]]
+    ref = render_scene(tmp_path, "ref", "0:48", setup, extra)
+    test = render_scene(tmp_path, "test", "100:148", setup, [*extra, "--set", 'lights["Small03"].energy=25'])
+    code, report, verdicts = compare_layers(tmp_path, ref, test, "light")
+    assert verdicts == {"lightgroup:cool": "no_evidence", "lightgroup:warm": "biased"}
+
+
+def render_scene(tmp_path, name, seeds, setup, extra):
+    out = tmp_path / f"{name}.npz"
+    done = subprocess.run(
+        [sys.executable, "-m", "batch", "render", *setup, "--seeds", seeds, "--spp", "1", "--resolution", "64", "64",
+         "--tile", "16", "--sampling-pattern", "TABULATED_SOBOL", "--out", str(out), *extra],
+        capture_output=True, text=True,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    return str(out)
