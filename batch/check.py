@@ -323,7 +323,14 @@ def run_check(job: CheckJob, progress, undecided: wc.Verdict = wc.Verdict.INCONC
     if verdict == wc.Verdict.NO_EVIDENCE and result.verdict == wc.Verdict.INCONCLUSIVE:
         verdict = wc.Verdict.INCONCLUSIVE  # too much of the image untestable to say "no evidence"
     summary = summaries.check_summary(result, ref, test, look, verdict, job, check.looks, check.plan.max_passes)
-    write_report(job.out, summary, result, ref, test)
+    # Each layer (--lobes) tested on the final data: a fixed-sample test after the looks, to say where the
+    # difference is, not to decide.
+    layers = summaries.layers_summary(
+        result, ref, test, wc.load_layers(job.reference.out, pixels=False), wc.load_layers(job.test.out, pixels=False)
+    )
+    if layers is not None:
+        summary["layers"] = layers[0]
+    write_report(job.out, summary, result, ref, test, layers=layers[1] if layers else None)
     return verdict, summary
 
 
@@ -361,6 +368,7 @@ def check_job_from_args(args) -> CheckJob:
         "sampling_pattern": args.sampling_pattern,
         "resume": args.resume,
         "checkpoint_every": count,  # saved after every chunk anyway
+        "lobes": args.lobes,
     }
     reference = RenderJob(
         out=str(out / "reference.npz"),

@@ -136,6 +136,13 @@ def build_parser() -> argparse.ArgumentParser:
     k.add_argument("--device", default="CPU", choices=jobs.DEVICES, help="Cycles device (default CPU)")
     k.add_argument("--sampling-pattern", metavar="PATTERN", help="Cycles sampling pattern (as render)")
     k.add_argument("--unpaired", action="store_true", help="disjoint seeds even on one build (an A/A check)")
+    k.add_argument(
+        "--lobes",
+        type=jobs.lobes_arg,
+        default=(),
+        metavar="LIST",
+        help="also render light components and light groups (as render --lobes); the report tests each",
+    )
     k.add_argument("--resume", action="store_true", help="continue a stopped check in --out")
     k.add_argument("--json-progress", action="store_true", help="one JSON line per event on stdout, for programs")
     k.add_argument("--out", required=True, metavar="DIR", help="folder for both sides' statistics and the report")

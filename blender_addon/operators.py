@@ -20,8 +20,9 @@ REDRAW_AREAS = {"PROPERTIES", "IMAGE_EDITOR"}
 
 
 def compare_and_show(context, reference_path: str, test_path: str, alpha: float) -> dict:
-    comparison, reference, test = results.compare_files(reference_path, test_path, alpha)
-    summary = results.store(comparison, reference, test, {"reference": reference_path, "test": test_path})
+    comparison, reference, test, layers = results.compare_files(reference_path, test_path, alpha)
+    sources = {"reference": reference_path, "test": test_path}
+    summary = results.store(comparison, reference, test, sources, layers)
     image = results.refresh(context)
     if not overlay.shown_anywhere(context):  # else the map is over the render someone looks at already
         results.show_in_image_editor(context, image)

@@ -123,7 +123,8 @@ def update(settings) -> None:
     if current.comparison is None:
         current.overlay = None
         return
-    current.overlay = tile_geometry(current.comparison, settings.map_mode, settings.channel, settings.opacity)
+    shown = current.layers.get(settings.component, current.comparison)  # the image's map, or a layer's
+    current.overlay = tile_geometry(shown, settings.map_mode, settings.channel, settings.opacity)
 
 
 def tag_redraw(context) -> None:

@@ -46,6 +46,20 @@ def _refresh_result(_self, context):
     results.refresh(context)
 
 
+#: The Component menu's items; kept here because Blender does not keep a dynamic enum's strings alive.
+_component_items: list[tuple[str, str, str]] = []
+
+
+def _components(_self, _context):
+    from .state import current
+
+    _component_items[:] = [("COMBINED", "Image", "The rendered image (Combined)")] + [
+        (name, name.replace("lightgroup:", "Light Group: ").title(), f"The {name} layer of both runs")
+        for name in current.layers
+    ]
+    return _component_items
+
+
 def _redraw_overlay(_self, context):
     from . import overlay
 
@@ -118,6 +132,19 @@ class WELCH_BIAS_PG_settings(bpy.types.PropertyGroup):
     )
     channel: EnumProperty(
         name="Channel", description="Channel shown by the One Channel map", items=CHANNELS, update=_refresh_result
+    )
+    component: EnumProperty(
+        name="Component",
+        description="Which layer's p-values the map shows: the image, or a light component or light group "
+        "(rendered with Light Components on)",
+        items=_components,
+        update=_refresh_result,
+    )
+    use_lobes: BoolProperty(
+        name="Light Components",
+        description="Also render the light components (diffuse, glossy, transmission, volume, emission, "
+        "environment) and the scene's light groups, and test each; slower passes",
+        default=False,
     )
     show_overlay: BoolProperty(
         name="Show Overlay",

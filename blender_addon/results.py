@@ -31,10 +31,24 @@ def _summary_module():
 
 
 def compare_files(reference_path: str, test_path: str, alpha: float):
-    """Load two statistics files and compare them; welch_core's errors carry one-line messages."""
+    """Load two statistics files and compare them, and each layer both have (light components, light groups:
+    ``render --lobes``); welch_core's errors carry one-line messages."""
     reference = welch_core.load_stats(reference_path)
     test = welch_core.load_stats(test_path)
-    return welch_core.compare(reference, test, alpha=alpha), reference, test
+    comparison = welch_core.compare(reference, test, alpha=alpha)
+    ref_layers = welch_core.load_layers(reference_path, pixels=False)
+    test_layers = welch_core.load_layers(test_path, pixels=False)
+    layers = {
+        name: welch_core.compare(layer, test_layers[name], alpha=alpha, test_kind=comparison.test)
+        for name, layer in ref_layers.items()
+        if name in test_layers
+    }
+    return comparison, reference, test, layers
+
+
+def shown_comparison(settings):
+    """The comparison the map shows: the image's, or the chosen layer's."""
+    return current.layers.get(settings.component, current.comparison)
 
 
 def histogram_bars(pvalues, bins: int = HISTOGRAM_BINS) -> tuple[list[dict], float]:
@@ -167,10 +181,14 @@ def frame_tile(context, x: int, y: int, size: int) -> bool:
     return True
 
 
-def store(comparison, reference, test, sources: dict[str, str]) -> dict:
-    """Cache a new comparison for the panels and the display settings."""
+def store(comparison, reference, test, sources: dict[str, str], layers=None) -> dict:
+    """Cache a new comparison (and its layers') for the panels and the display settings."""
     current.comparison, current.stats, current.highlight = comparison, (reference, test), None
+    current.layers = dict(layers or {})
     current.result = summarize(comparison, reference, test, sources)
+    current.result["layers"] = [
+        {"name": name, "verdict": c.verdict.label, "title": c.verdict.title} for name, c in current.layers.items()
+    ]
     return current.result
 
 
@@ -185,7 +203,7 @@ def refresh(context) -> bpy.types.Image | None:
     # The test side is the render under suspicion: its mean is the picture under the map.
     base = test if test.mean_image is not None else reference
     rgba = result_rgba(
-        current.comparison, base, settings.map_mode, settings.channel, settings.opacity, current.highlight
+        shown_comparison(settings), base, settings.map_mode, settings.channel, settings.opacity, current.highlight
     )
     image = write_image(rgba)
     current.result["image"] = image.name

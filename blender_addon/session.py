@@ -6,6 +6,7 @@ own folder, which both sides render.
 
 from __future__ import annotations
 
+import importlib
 import sys
 import tempfile
 import time
@@ -74,8 +75,17 @@ def settings_key(settings, scene) -> tuple:
     names = tuple(s.name if s is not None else "" for s in (reference, test))
     return (
         bpy.data.filepath, settings.mode, names, tuple(settings.enabled_overrides()), settings.passes,
-        settings.first_seed, settings.paired, settings.spp, settings.tile, settings.device,
+        settings.first_seed, settings.paired, settings.spp, settings.tile, settings.device, settings.use_lobes,
     )  # fmt: skip
+
+
+def _lobes(settings, scene) -> tuple[str, ...]:
+    """The components, and the light groups where the view layer has some (``--lobes``)."""
+    if not settings.use_lobes:
+        return ()
+    groups = any(len(getattr(layer, "lightgroups", ())) for layer in scene.view_layers)
+    components = importlib.import_module(".lobes", batch.__name__).COMPONENTS
+    return (*components, "lightgroups") if groups else components
 
 
 def sides(settings, scene, blend: str, folder: Path, resume: bool, blender: str = "") -> list[runner.Side]:
@@ -89,6 +99,7 @@ def sides(settings, scene, blend: str, folder: Path, resume: bool, blender: str 
         "resume": resume,
         "device": settings.device,
         "blender": blender or None,
+        "lobes": _lobes(settings, scene),
     }
     job = batch.job.RenderJob
     return [

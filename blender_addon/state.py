@@ -30,6 +30,7 @@ class AddonState:
     resumable: RunFolder | None = None  # a cancelled or failed run whose statistics can be continued
     result: dict | None = None  # the panel's summary of the last comparison (see results.summarize)
     comparison: object = None  # the last welch_core.Comparison, to re-colour the map without recomputing
+    layers: dict = field(default_factory=dict)  # its layers' comparisons (light components, light groups)
     stats: tuple = field(default_factory=tuple)  # (reference, test) TileStats of the last comparison
     highlight: tuple[int, int] | None = None  # (row, col) of the tile outlined in the result image
     overlay: object = None  # overlay.Geometry of the comparison with the display settings, or None
@@ -42,6 +43,7 @@ class AddonState:
 
     def clear_result(self) -> None:
         self.result, self.comparison, self.stats, self.highlight = None, None, (), None
+        self.layers = {}
         self.overlay, self.overlay_batches, self.overlay_error = None, None, ""
 
     def reset(self) -> None:

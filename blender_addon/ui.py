@@ -84,6 +84,7 @@ def draw_setup(layout, settings) -> None:
     col.prop(settings, "paired")
     col.prop(settings, "tile")
     col.prop(settings, "device")
+    col.prop(settings, "use_lobes")
     col.prop(settings, "alpha")
 
 
@@ -127,10 +128,14 @@ def draw_verdict(layout, result) -> None:
         box.label(text=note, icon="INFO")
     for warning in result["warnings"]:
         box.label(text=warning, icon="ERROR")
+    for layer in result.get("layers", []):
+        box.label(text=f"{layer['name']}: {layer['title']}", icon="ERROR" if layer["verdict"] == "biased" else "DOT")
 
 
 def draw_display(layout, settings) -> None:
     col = layout.column()
+    if current.layers:
+        col.prop(settings, "component")
     col.prop(settings, "map_mode")
     if settings.map_mode == "CHANNEL":
         col.prop(settings, "channel")

@@ -533,3 +533,34 @@ def test_registering_imports_nothing_heavy():
     heavy = [m for m in report["new"] if m.split(".")[0] in {"scipy", "matplotlib", "OpenEXR"}]
     statistics = [m for m in report["new"] if m.startswith("welch_core.") or m in {"batch.summary", "batch.report"}]
     assert heavy == [] and statistics == []
+
+
+def test_the_map_shows_a_chosen_light_component(scene, tmp_path):
+    """Statistics files with layers (render --lobes): each layer is compared, the panel lists their verdicts and
+    the Component menu switches the map to a layer's p-values."""
+    settings = scene.welch_bias
+    settings.mode = "STATS_FILES"
+    paths = []
+    for name, seeds, bias in (("ref", range(0, 16), 0.0), ("test", range(16, 32), 0.3)):
+        rng = np.random.default_rng(len(paths))
+        info = welch_core.RunInfo(spp=1, renderer="synthetic")
+        image, glossy = (welch_core.TileStats(SIZE, SIZE, TILE, 3, info) for _ in range(2))
+        for s in seeds:
+            shiny = 0.1 + rng.normal(0.0, 0.02, (SIZE, SIZE, 3))
+            shiny[: SIZE // 2, : SIZE // 2] *= 1.0 + bias  # the bias is all in the glossy layer
+            base = 0.2 + rng.normal(0.0, 0.05, (SIZE, SIZE, 3))
+            image.add_pass((base + shiny).astype(np.float32), s)
+            glossy.add_pass(shiny.astype(np.float32), s)
+        welch_core.save_stats(tmp_path / f"{name}.npz", image, {"glossy": glossy})
+        paths.append(str(tmp_path / f"{name}.npz"))
+    settings.reference_file, settings.test_file = paths
+    assert bpy.ops.welch_bias.run() == {"FINISHED"}
+    assert state.result["layers"] == [{"name": "glossy", "verdict": "biased", "title": "Biased"}]
+    image = bpy.data.images[state.result["image"]]
+    settings.component = "COMBINED"
+    combined = read_pixels(image)
+    settings.component = "glossy"
+    assert results.shown_comparison(settings) is state.layers["glossy"]
+    assert not np.allclose(read_pixels(image), combined)  # the glossy layer's p-values colour the map now
+    texts = draw_panel().texts()
+    assert any("glossy: Biased" in text for text in texts)
