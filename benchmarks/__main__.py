@@ -4,7 +4,10 @@
     python -m benchmarks --quick --out /tmp/bench    # tiny pools and few trials: checks the pipeline, not the figures
     python -m benchmarks --charts 2 4    # some charts only (the others keep their last figures)
 
-Charts: 1 detection rate against render time, 2 p-value methods, 3 stability on unbiased pairs, 4 cost.
+Charts: 1 detection rate against render time, 2 p-value methods, 3 stability on unbiased pairs, 4 cost, 5 render
+seconds to a decision (`check` against the best fixed design), 6 A/A runs of `check`, 7 multi-scale tiles against
+fixed tile sizes. ``--quick`` alone runs charts 1-4 (tests/test_benchmarks.py counts their four PNGs);
+``--quick --charts 5 6 7`` checks the others (tests/test_benchmarks_decision.py).
 """
 
 from __future__ import annotations
@@ -17,11 +20,13 @@ import time
 from importlib import metadata
 from pathlib import Path
 
-from . import cost, detection, plan, pvalues, readme, stability
-from .cache import DEFAULT_DIR, REPO
+from . import aa, cost, decision, detection, plan, pvalues, readme, scales, stability
+from .cache import DEFAULT_DIR, REPO, welch_digest
 from .pools import RENDERED, say
 
-CHARTS = {"1": detection, "2": pvalues, "3": stability, "4": cost}
+CHARTS = {"1": detection, "2": pvalues, "3": stability, "4": cost, "5": decision, "6": aa, "7": scales}
+#: What ``--quick`` runs without ``--charts``.
+QUICK_CHARTS = ("1", "2", "3", "4")
 
 
 def machine() -> dict:
@@ -44,9 +49,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="tiny pools and few trials (CI)")
     parser.add_argument("--out", type=Path, default=REPO / "docs" / "benchmarks", help="output folder")
     parser.add_argument("--cache", type=Path, default=DEFAULT_DIR, help="pool and trial cache folder")
-    parser.add_argument("--charts", nargs="+", choices=sorted(CHARTS), default=sorted(CHARTS), help="charts to run")
+    parser.add_argument(
+        "--charts", nargs="+", choices=sorted(CHARTS), help="charts to run (default: all; with --quick: 1-4)"
+    )
     args = parser.parse_args(argv)
+    if args.charts is None:
+        args.charts = list(QUICK_CHARTS) if args.quick else sorted(CHARTS)
     budget = plan.QUICK if args.quick else plan.FULL
+    welch_digest()  # the code of this run, fixed now (see `cache.welch_digest`)
     args.out.mkdir(parents=True, exist_ok=True)
     args.cache.mkdir(parents=True, exist_ok=True)
     figures_path = args.out / "figures.json"
@@ -63,6 +73,8 @@ def main(argv: list[str] | None = None) -> int:
         say(
             f"== chart {chart} done in {time.perf_counter() - t0:.0f} s: {', '.join(figures[f'chart{chart}']['files'])}"
         )
+    notes = {k: v for k, v in figures.get("notes", {}).items() if k not in args.charts}  # a re-run chart's note goes
+    figures["notes"] = notes  # chart -> a sentence about where its figures come from (set by hand, see readme)
     if set(args.charts) == set(CHARTS) or "command" not in figures:  # a run of some charts keeps the full run's record
         figures["last_run_seconds"] = time.perf_counter() - start
         figures["pools_rendered"] = len(set(RENDERED))

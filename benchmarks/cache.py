@@ -4,7 +4,9 @@ computes afresh and an unchanged one is read back.
 
 from __future__ import annotations
 
+import functools
 import hashlib
+import importlib
 import json
 import os
 from collections.abc import Callable
@@ -29,6 +31,32 @@ def source_digest(*folders: str) -> str:
             h.update(path.name.encode())
             h.update(path.read_bytes())
     return h.hexdigest()[:16]
+
+
+#: welch_core's modules that cannot change a statistical result (file formats, pictures, the lazy-import table):
+#: an edit there keeps the cached trials.
+NOT_RESULTS = frozenset({"__init__.py", "exr.py", "formats.py", "png.py", "colormap.py"})
+
+
+@functools.cache
+def welch_digest() -> str:
+    """Hash of the welch_core sources that compute results (all but `NOT_RESULTS`): the key of cached trials. Taken
+    once per process, with every welch_core module imported at that moment (`load_welch_core`), so the key names
+    the code that runs even while the files are edited."""
+    load_welch_core()
+    h = hashlib.sha256()
+    for path in sorted((REPO / "welch_core").glob("*.py")):
+        if path.name not in NOT_RESULTS:
+            h.update(path.name.encode())
+            h.update(path.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def load_welch_core() -> None:
+    """Import every welch_core module now (welch_core imports its modules on first use)."""
+    for path in sorted((REPO / "welch_core").glob("*.py")):
+        if path.stem != "__init__":
+            importlib.import_module(f"welch_core.{path.stem}")
 
 
 def memo_json(cache_dir: Path, name: str, key: str, compute: Callable[[], Any]) -> Any:

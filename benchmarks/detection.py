@@ -12,18 +12,20 @@ from pathlib import Path
 import numpy as np
 
 from . import plan, trials
-from .cache import digest, memo_json, source_digest
+from .cache import digest, memo_json, welch_digest
 from .plotting import COLORS, plt, save, write_csv
 from .pools import load_or_render, say
-from .trials import ALPHA, CALIBRATED_METHODS, COMPARE_METHODS, LABELS, METHODS
+from .trials import ALPHA, CALIBRATED_METHODS, LABELS, METHODS, PAIRED, UNPAIRED
 
 #: Detection share the "seconds to detect" figures refer to.
 TARGET = 0.8
-UNPAIRED = [m for m in COMPARE_METHODS if COMPARE_METHODS[m][1] == "welch"]
+#: The curves drawn on chart 1 (every method is in the CSV files): the paired test's other single tile sizes are
+#: left off the plot to keep it readable.
+PLOTTED = tuple(m for m in METHODS if m not in ("paired16", "paired64", "paired128"))
 
 
 def _code() -> str:
-    return f"{source_digest('welch_core')}-{trials.TRIALS_VERSION}"
+    return f"{welch_digest()}-{trials.TRIALS_VERSION}"
 
 
 # -- unbiased pairs ------------------------------------------------------------------------------------------
@@ -39,10 +41,11 @@ def null_results(b: plan.Budget, ref, converged, cache_dir: Path, label: str = "
         for n in b.n_grid:
             if 2 * n > ref.n:
                 continue
-            counts = {m: [0, 0] for m in UNPAIRED}  # biased, inconclusive
+            counts = {}  # method -> [biased, inconclusive]
             for _ in range(b.null_trials):
                 verdicts = trials.compare_verdicts(ref, ref, trials.draw_unpaired(rng, ref.n, n), UNPAIRED)
                 for m, v in verdicts.items():
+                    counts.setdefault(m, [0, 0])
                     counts[m][0] += v == "biased"
                     counts[m][1] += v == "inconclusive"
             out["compare"][str(n)] = {"trials": b.null_trials, "counts": counts}
@@ -63,7 +66,7 @@ def null_results(b: plan.Budget, ref, converged, cache_dir: Path, label: str = "
 
 
 def paired_null_results(b: plan.Budget, ref, other, cache_dir: Path) -> dict:
-    """The paired test on an unbiased pair with identical seeds (two sampling patterns of one scene)."""
+    """The paired tests on an unbiased pair with identical seeds (two sampling patterns of one scene)."""
 
     def compute():
         rng = np.random.default_rng(int(digest("paired-null", ref.spec.key)[:8], 16))
@@ -71,11 +74,13 @@ def paired_null_results(b: plan.Budget, ref, other, cache_dir: Path) -> dict:
         for n in b.n_grid:
             if n > ref.n:
                 continue
-            counts = [0, 0]
+            counts = {}
             for _ in range(b.null_trials):
-                v = trials.compare_verdicts(ref, other, trials.draw_paired(rng, ref.n, n), ["paired32"])["paired32"]
-                counts[0] += v == "biased"
-                counts[1] += v == "inconclusive"
+                verdicts = trials.compare_verdicts(ref, other, trials.draw_paired(rng, ref.n, n), PAIRED)
+                for m, v in verdicts.items():
+                    counts.setdefault(m, [0, 0])
+                    counts[m][0] += v == "biased"
+                    counts[m][1] += v == "inconclusive"
             out[str(n)] = {"trials": b.null_trials, "counts": counts}
         return out
 
@@ -102,8 +107,8 @@ def false_positive_rows(group: str, null: dict, paired: dict | None) -> list[dic
             held_out = np.array(values[len(values) // 2 :])  # not used to set the threshold
             rows.append(_rate_row(group, m, int(n), int((held_out > limits[m][int(n)]).sum()), len(held_out), 0))
     for n, entry in (paired or {}).items():
-        k, inc = entry["counts"]
-        rows.append(_rate_row(group, "paired32", int(n), k, entry["trials"], inc))
+        for m, (k, inc) in entry["counts"].items():
+            rows.append(_rate_row(group, m, int(n), k, entry["trials"], inc))
     return rows
 
 
@@ -127,22 +132,17 @@ def case_results(b: plan.Budget, case: plan.Case, pools: dict, null: dict, cache
         rng = np.random.default_rng(int(digest("case", case.test.key)[:8], 16))
         rows, saturated = [], {m: 0 for m in METHODS}
         for n in b.n_grid:
-            active = [m for m in COMPARE_METHODS if saturated[m] < 2]
-            if 2 * n > ref.n:
-                active = [m for m in active if m == "paired32"]
-            counts = {m: [0, 0] for m in active}
+            unpaired = [m for m in UNPAIRED if saturated[m] < 2 and 2 * n <= ref.n]
+            paired = [m for m in PAIRED if saturated[m] < 2 and n <= ref.n]
+            counts = {}
             for _ in range(b.trials):
-                unpaired = [m for m in active if m != "paired32"]
-                if unpaired:
-                    for m, v in trials.compare_verdicts(
-                        ref, test, trials.draw_unpaired(rng, ref.n, n), unpaired
-                    ).items():
+                for methods, draw in ((unpaired, trials.draw_unpaired), (paired, trials.draw_paired)):
+                    if not methods:
+                        continue
+                    for m, v in trials.compare_verdicts(ref, test, draw(rng, ref.n, n), methods).items():
+                        counts.setdefault(m, [0, 0])
                         counts[m][0] += v == "biased"
                         counts[m][1] += v == "inconclusive"
-                if "paired32" in active:
-                    v = trials.compare_verdicts(ref, test, trials.draw_paired(rng, ref.n, n), ["paired32"])["paired32"]
-                    counts["paired32"][0] += v == "biased"
-                    counts["paired32"][1] += v == "inconclusive"
             if str(n) in null["rmse"]:
                 for m in CALIBRATED_METHODS:
                     counts[m] = [0, 0]
@@ -200,8 +200,10 @@ def mean_change(ref, test) -> tuple[float, float, float]:
 # -- the chart -----------------------------------------------------------------------------------------------
 
 
-def run(b: plan.Budget, cache_dir: Path, out_dir: Path) -> dict:
-    """Render (or read) the pools, run every trial, write the CSVs and the chart; return the headline figures."""
+def compute(b: plan.Budget, cache_dir: Path) -> dict:
+    """Render (or read) the pools and run (or read back) every trial: the cases, the pools, the detection rows,
+    the false-positive rows and the seconds to 80 % per case and method. Charts 5 and 7 call it too (the trials
+    come from the cache once chart 1 has run)."""
     cases = plan.cases(b)
     paired_ref, paired_other = plan.paired_null(b)
     specs = {}
@@ -235,14 +237,31 @@ def run(b: plan.Budget, cache_dir: Path, out_dir: Path) -> dict:
                  "seconds": seconds(row["method"], row["n"], ref, test, conv)}
             )  # fmt: skip
         for m in METHODS:
-            s, n = seconds_to_target([r for r in det_rows if r["case"] == c.name and r["method"] == m])
+            rows = [r for r in det_rows if r["case"] == c.name and r["method"] == m]
+            if not rows:  # a tile larger than the image (quick run)
+                continue
+            s, n = seconds_to_target(rows)
             summary.append(
                 {"case": c.name, "label": c.label, "mean_change": change, "mean_change_se": se,
                  "variance_ratio": var_ratio, "method": m, "seconds_to_80": s, "passes_to_80": n,
                  "converged_seconds": conv.total_seconds,
                  "seconds_per_pass_ref": ref.seconds_per_pass, "seconds_per_pass_test": test.seconds_per_pass}
             )  # fmt: skip
+    return {"cases": cases, "pools": pools, "detection": det_rows, "false_positives": fp_rows, "summary": summary}
 
+
+def best_fixed(summary: list[dict], case: str, methods) -> dict | None:
+    """The fixed design chosen in hindsight: of `methods` (one tile size each), the one with the fewest seconds to
+    80 % detection on `case`; None when none gets there."""
+    found = [r for r in summary if r["case"] == case and r["method"] in methods and r["seconds_to_80"] is not None]
+    return min(found, key=lambda r: r["seconds_to_80"]) if found else None
+
+
+def run(b: plan.Budget, cache_dir: Path, out_dir: Path) -> dict:
+    """Every trial, the CSVs and the chart; return the headline figures."""
+    found = compute(b, cache_dir)
+    cases, pools, det_rows, fp_rows, summary = (found[k] for k in ("cases", "pools", "detection", "false_positives",
+                                                                   "summary"))  # fmt: skip
     files = [
         write_csv(out_dir / "chart1_detection.csv", det_rows),
         write_csv(out_dir / "chart1_false_positives.csv", fp_rows),
@@ -283,12 +302,13 @@ def _plot(path: Path, cases, det_rows, fp_rows, summary) -> str:
     for i, c in enumerate(cases):
         ax = fig.add_subplot(grid[i // 3, i % 3])
         info = next(s for s in summary if s["case"] == c.name)
-        for m in METHODS:
+        for m in PLOTTED:
             rows = sorted((r for r in det_rows if r["case"] == c.name and r["method"] == m), key=lambda r: r["n"])
             if not rows:
                 continue
             x = [r["seconds"] for r in rows]
-            ax.plot(x, [r["rate"] for r in rows], "o-", ms=3, color=COLORS[m], label=LABELS[m])
+            style = "s--" if m.endswith("_multi") else "o-"
+            ax.plot(x, [r["rate"] for r in rows], style, ms=3, color=COLORS[m], label=LABELS[m])
             ax.fill_between(x, [r["lo"] for r in rows], [r["hi"] for r in rows], color=COLORS[m], alpha=0.15, lw=0)
             inconclusive = [r["inconclusive"] / r["trials"] for r in rows]
             if any(inconclusive):  # where the trust mask withholds a verdict: the method's failure mode
@@ -296,7 +316,7 @@ def _plot(path: Path, cases, det_rows, fp_rows, summary) -> str:
         ax.axhline(TARGET, color="k", ls=":", lw=0.8)
         ax.axhline(ALPHA, color="k", ls="--", lw=0.6)
         first = [min((r for r in det_rows if r["case"] == c.name and r["method"] == m), key=lambda r: r["n"])
-                 for m in METHODS]  # fmt: skip
+                 for m in METHODS if any(r["case"] == c.name and r["method"] == m for r in det_rows)]  # fmt: skip
         if all(r["rate"] >= 0.99 for r in first):
             ax.text(0.5, 0.5, f"every method: ≥ 99 % at the first point\n({first[0]['n']} passes a side)",
                     transform=ax.transAxes, ha="center", va="center", fontsize=9)  # fmt: skip
@@ -325,13 +345,13 @@ def _plot(path: Path, cases, det_rows, fp_rows, summary) -> str:
 def _plot_false_positives(ax, fp_rows) -> None:
     totals = _fp_totals(fp_rows)
     groups = list(dict.fromkeys(r["group"] for r in totals))
-    width = 0.8 / len(METHODS)
-    for j, m in enumerate(METHODS):
+    width = 0.8 / len(PLOTTED)
+    for j, m in enumerate(PLOTTED):  # the CSV has the paired test's other tile sizes too
         for i, g in enumerate(groups):
             r = next((r for r in totals if r["group"] == g and r["method"] == m), None)
             if r is None:
                 continue
-            x = i + (j - (len(METHODS) - 1) / 2) * width
+            x = i + (j - (len(PLOTTED) - 1) / 2) * width
             ax.errorbar(
                 x,
                 r["rate"],

@@ -62,6 +62,12 @@ class Budget:
     overhead_passes: int
     heavy_subdivisions: int  # icosphere subdivisions of the heavy mesh: 20 * 4**(s - 1) triangles
     heavy_passes: int
+    decision_runs: int  # simulated `check` runs per case and test (chart 5)
+    aa_runs: int  # simulated A/A `check` runs on the corner (chart 6)
+    aa_other_runs: int  # the same on the other unbiased pairs
+    scale_trials: int  # trials per pass count and tile size on the glass sphere's A/A (chart 7)
+    scale_n: tuple[int, ...]  # those pass counts, a side
+    stability_check_trials: int  # simulated `check` runs per situation of chart 3
 
     def pool(self, scene: str, *overrides: str, **changes) -> PoolSpec:
         spec = PoolSpec(scene, tuple(overrides), self.resolution, 1, self.passes)
@@ -91,6 +97,12 @@ FULL = Budget(
     overhead_passes=100,
     heavy_subdivisions=8,
     heavy_passes=12,
+    decision_runs=400,
+    aa_runs=1000,
+    aa_other_runs=300,
+    scale_trials=300,
+    scale_n=(8, 16, 24, 32, 48, 64, 96, 128, 192),
+    stability_check_trials=1000,
 )
 
 QUICK = Budget(
@@ -113,6 +125,12 @@ QUICK = Budget(
     overhead_passes=3,
     heavy_subdivisions=4,
     heavy_passes=2,
+    decision_runs=6,
+    aa_runs=8,
+    aa_other_runs=4,
+    scale_trials=6,
+    scale_n=(4, 8),
+    stability_check_trials=6,
 )
 
 
@@ -135,6 +153,19 @@ def cases(b: Budget) -> list[Case]:
     ]  # fmt: skip
     groups = {corner: "corner", bright: "bright corner", glossy: "glossy"}
     return [Case(name, label, groups[ref], ref, test, b.converged(ref)) for name, label, ref, test in spec]
+
+
+#: The glossy scene's metal sphere: its base colour is (0.9, 0.6, 0.3).
+METAL_COLOR_PATH = 'materials["Metal"].node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value'
+
+
+def local_case(b: Budget) -> Case:
+    """A local bias: one small object's material changed (the metal sphere's red 0.9 -> 0.85, about -6 % in the
+    sphere's two tiles of 16², -1.2 % in the red of the whole image through what the sphere reflects)."""
+    glossy = b.pool("glossy")
+    test = b.pool("glossy", f"{METAL_COLOR_PATH}=0.85,0.6,0.3,1")
+    return Case("metal", "metal sphere red 0.90 → 0.85 (glossy scene, local)", "glossy", glossy, test,
+                b.converged(glossy))  # fmt: skip
 
 
 def paired_null(b: Budget) -> tuple[PoolSpec, PoolSpec]:

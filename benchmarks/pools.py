@@ -12,8 +12,10 @@ from both pools and an unpaired trial takes disjoint halves.
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import os
+import re
 import sys
 import time
 from dataclasses import asdict, dataclass
@@ -49,9 +51,14 @@ class PoolSpec:
         return digest(asdict(self), metadata.version("bpy"), _scenes_digest())
 
 
+@functools.cache
 def _scenes_digest() -> str:
-    """The built-in scenes' source: a changed scene must be rendered again (other batch edits need not)."""
-    return digest((Path(__file__).resolve().parent.parent / "batch" / "scenes.py").read_text())
+    """The built-in scenes' identity, as the batch tool records it in a run: `batch.scenes.BUILDER_VERSION`, which
+    is raised whenever a builder changes what it builds (read from the source, without importing bpy; once per
+    process, so a run's pools keep their keys while the file is edited). Adding a scene renders nothing again."""
+    source = (Path(__file__).resolve().parent.parent / "batch" / "scenes.py").read_text()
+    found = re.search(r"^BUILDER_VERSION\s*=\s*(\d+)", source, re.MULTILINE)
+    return digest("builder", found.group(1) if found else source)
 
 
 class Pool:

@@ -6,6 +6,11 @@ untrusted tiles, the notes). Expected: "calibrated" (rate not above alpha), or t
 (`inconclusive`, untrusted tiles, a note, or a refusal). A clearly raised rate without a flag is a defect of the
 tool, printed as ``SILENT FALSE POSITIVES``.
 
+Every situation's trials run `compare` twice on the same passes: at the situation's one tile size (``tile=``, as
+before compare tested every scale) and at its default, every scale from that tile size up (Bonferroni over the
+scales). Where it is cheap (disjoint seeds, the exact p, tiles of 16² or more) simulated runs of `check` at its
+defaults with the situation's N as the budget and its tile as the finest (`checks`) give check's verdicts too.
+
 Two rows are not the tool's own behaviour, to show what it guards against: the paper's Gaussian p used everywhere
 (§5.7), and Welch's formula forced onto passes with identical seeds.
 """
@@ -21,8 +26,8 @@ import numpy as np
 import welch_core as wc
 from batch.summary import notes
 
-from . import plan, trials
-from .cache import digest, memo_json, source_digest
+from . import checks, plan, trials
+from .cache import digest, memo_json, welch_digest
 from .plotting import plt, save, write_csv
 from .pools import load_or_render, say
 from .trials import ALPHA
@@ -51,6 +56,7 @@ def _tally(outcomes: list[dict]) -> dict:
         "inconclusive": sum(o["verdict"] == "inconclusive" for o in outcomes) / total,
         "refused": sum(o["verdict"] == "refused" for o in outcomes) / total,
         "untrusted_share": float(np.mean([o["untrusted"] / max(o["valid"], 1) for o in outcomes])),
+        "uncovered_share": float(np.mean([o.get("uncovered", 0) / max(o["valid"], 1) for o in outcomes])),
         "biased_with_flag": flagged_biased,
         "median_p": float(np.median([o["p"] for o in outcomes])),
         "hist": hist.tolist(),
@@ -66,6 +72,7 @@ def _outcome(comparison: wc.Comparison) -> dict:
         "hist": np.histogram(p, BINS, (0, 1))[0],
         "untrusted": int((np.isfinite(comparison.tile_pvalues) & ~comparison.trusted).sum()),
         "valid": comparison.n_valid,
+        "uncovered": int(comparison.uncovered.sum()) if comparison.uncovered is not None else 0,
         # Numbers vary from trial to trial; the note's kind is what counts.
         "notes": [re.sub(r"\d+", "#", note) for note in notes(comparison)],
     }
@@ -88,7 +95,9 @@ def _by_hand(result: wc.TTestResult, pvalues: np.ndarray) -> dict:
 def compare_trials(
     rng, ref, test, n, tile, count, draw="unpaired", kind="auto", pvalue_method="exact", forced=None
 ) -> list[dict]:
-    """`count` trials of `welch_core.compare` (or a forced variant) at n passes a side and `tile`.
+    """`count` trials of `welch_core.compare` (or a forced variant) at n passes a side: ``{"single": outcome,
+    "multi": outcome}`` each, the first at `tile` alone, the second at every scale from `tile` (compare's default;
+    a forced variant has one outcome, used for both).
 
     `draw` chooses disjoint ("unpaired") or identical ("paired") seeds; `kind` is compare's `test_kind`.
     """
@@ -100,18 +109,37 @@ def compare_trials(
         if forced == "gauss_everywhere":
             # The paper's p_inf for every tile-channel, even at small nu (§5.7, Fig. 22 b).
             r = wc.welch_from_stats(a.mean, a.variance, a.n, b.mean, b.variance, b.n)
-            out.append(_by_hand(r, wc.pvalue_gauss(r.statistic)))
+            one = _by_hand(r, wc.pvalue_gauss(r.statistic))
+            out.append({"single": one, "multi": one})
         elif forced == "welch_same_seeds":
             # Welch's formula on passes with the same seeds: what compare refuses to do.
             r = wc.welch_from_stats(a.mean, a.variance, a.n, b.mean, b.variance, b.n)
-            out.append(_by_hand(r, r.pvalue))
+            one = _by_hand(r, r.pvalue)
+            out.append({"single": one, "multi": one})
         else:
             try:
-                out.append(_outcome(wc.compare(a, b, ALPHA, test_kind=kind, pvalue_method=pvalue_method)))
+                single = wc.compare(a, b, ALPHA, test_kind=kind, pvalue_method=pvalue_method, tile=tile)
+                multi = wc.compare(a, b, ALPHA, test_kind=kind, pvalue_method=pvalue_method)
+                out.append({"single": _outcome(single), "multi": _outcome(multi)})
             except wc.SeedOverlapError as error:
                 refused = {"verdict": "refused", "p": float("nan"), "hist": np.zeros(BINS, int), "untrusted": 0}
-                out.append(refused | {"valid": 0, "notes": [f"SeedOverlapError: {error}"]})
+                refused |= {"valid": 0, "notes": [f"SeedOverlapError: {error}"]}
+                out.append({"single": refused, "multi": refused})
     return out
+
+
+def check_cheap(s: dict) -> bool:
+    """Simulated `check` runs make sense and cost little: disjoint seeds, the exact p, tiles of 16² or more."""
+    return not s["options"] and s["tile"] >= 16 and s["n"] >= 2
+
+
+def check_tally(runs: list[dict]) -> dict:
+    total = len(runs)
+    k = {v: sum(r["verdict"] == v for r in runs) for v in ("biased", "equivalent", "inconclusive")}
+    lo, hi = trials.wilson(k["biased"], total)
+    return {"check_runs": total, "check_biased": k["biased"], "check_rate": k["biased"] / total, "check_lo": lo,
+            "check_hi": hi, "check_equivalent": k["equivalent"] / total,
+            "check_inconclusive": k["inconclusive"] / total}  # fmt: skip
 
 
 def situations(b: plan.Budget) -> list[dict]:
@@ -170,6 +198,8 @@ def classify(row: dict) -> str:
         flags.append(f"inconclusive {100 * row['inconclusive']:.0f} %")
     if row["untrusted_share"] >= FLAG_SHARE:
         flags.append(f"untrusted tiles {100 * row['untrusted_share']:.0f} %")
+    if row.get("uncovered_share", 0) >= FLAG_SHARE:
+        flags.append(f"tiles tested at no scale {100 * row['uncovered_share']:.0f} %")
     if any("unchecked" in note for note in row["notes"]):
         flags.append("note: normality unchecked")
     flag = f" ({'; '.join(flags)})" if flags else ""
@@ -192,31 +222,50 @@ def run(b: plan.Budget, cache_dir: Path, out_dir: Path) -> dict:
         ref, test = pools[s["ref"].key], pools[s["test"].key]
         opt = dict(s["options"])
         key = digest(s["label"], ref.spec.key, test.spec.key, s["n"], s["tile"], s["trials"], opt,
-                     source_digest("welch_core"), trials.TRIALS_VERSION)  # fmt: skip
+                     welch_digest(), trials.TRIALS_VERSION, "single+multi")  # fmt: skip
 
         def compute(s=s, ref=ref, test=test, opt=opt, key=key):
             rng = np.random.default_rng(int(key[:8], 16))
-            return _tally(compare_trials(rng, ref, test, s["n"], s["tile"], s["trials"], **opt))
+            outcomes = compare_trials(rng, ref, test, s["n"], s["tile"], s["trials"], **opt)
+            return {kind: _tally([o[kind] for o in outcomes]) for kind in ("single", "multi")}
 
         say(f"chart 3: {s['label']}")
-        tally = memo_json(cache_dir, "stability", key, compute)
-        row = {"situation": s["label"], "n": s["n"], "tile": s["tile"], "expected": s["expected"], **tally}
+        tallies = memo_json(cache_dir, "stability", key, compute)
+        row = {"situation": s["label"], "n": s["n"], "tile": s["tile"], "expected": s["expected"], **tallies["single"]}
         row["outcome"] = classify(row)
-        if row["outcome"].startswith("SILENT"):
-            say(
-                f"  WARNING: {row['situation']}: {row['outcome']}, "
-                f"rate {row['rate']:.3f} [{row['lo']:.3f}, {row['hi']:.3f}]"
-            )
+        multi = tallies["multi"] | {"expected": s["expected"]}
+        row |= {f"multi_{k}": v for k, v in multi.items() if k != "expected"}
+        row["multi_outcome"] = classify(multi)
+        if check_cheap(s):
+            runs = checks.simulate(ref, test, False, b.stability_check_trials, cache_dir, max_passes=s["n"],
+                                   tile=s["tile"])  # fmt: skip
+            row |= check_tally(runs)
+            row["check_outcome"] = _check_outcome(row)
+        for name in ("outcome", "multi_outcome", "check_outcome"):
+            if row.get(name, "").startswith("SILENT"):
+                say(f"  WARNING: {row['situation']}: {name} {row[name]}")
         rows.append(row)
-    csv_rows = [r | {"hist": " ".join(map(str, r["hist"])), "notes": " | ".join(r["notes"])} for r in rows]
+    csv_rows = [{k: (" ".join(map(str, v)) if k.endswith("hist") else " | ".join(v) if k.endswith("notes") else v)
+                 for k, v in r.items()} for r in rows]  # fmt: skip
     files = [write_csv(out_dir / "chart3_stability.csv", csv_rows), _plot(out_dir / "chart3_stability.png", rows)]
     return {"files": files, "rows": rows}
+
+
+def _check_outcome(row: dict) -> str:
+    if row["expected"] == "power":
+        return f"detected in {100 * row['check_rate']:.0f} %"
+    flags = []
+    if row["check_inconclusive"] >= FLAG_SHARE:
+        flags.append(f"inconclusive {100 * row['check_inconclusive']:.0f} %")
+    if row["check_lo"] <= ALPHA:
+        return ("calibrated" if not flags else "calibrated, flagged") + (f" ({'; '.join(flags)})" if flags else "")
+    return "SILENT FALSE POSITIVES" if not flags else "false positives above alpha, flagged"
 
 
 def _plot(path: Path, rows: list[dict]) -> str:
     cols = 4
     nrows = -(-len(rows) // cols)
-    fig, axes = plt.subplots(nrows, cols, figsize=(18, 3.1 * nrows), squeeze=False)
+    fig, axes = plt.subplots(nrows, cols, figsize=(20, 3.4 * nrows), squeeze=False)
     edges = np.linspace(0, 1, BINS + 1)
     for ax, r in zip(axes.ravel(), rows, strict=False):
         hist = np.asarray(r["hist"], float)
@@ -224,10 +273,14 @@ def _plot(path: Path, rows: list[dict]) -> str:
             ax.bar(edges[:-1], hist / hist.sum() * BINS, width=1 / BINS, align="edge", color="#4c72b0")
         ax.axhline(1.0, color="k", ls="--", lw=0.7)
         ax.set_xlim(0, 1)
-        rate = (
-            f"biased {r['biased']}/{r['trials']} = {100 * r['rate']:.1f} % [{100 * r['lo']:.1f}, {100 * r['hi']:.1f}]"
-        )
-        ax.set_title(f"{r['situation']}\n{rate}, median global p {r['median_p']:.2g}\n{r['outcome']}", fontsize=7.5)
+        rate = f"one tile: biased {r['biased']}/{r['trials']} [{100 * r['lo']:.1f}, {100 * r['hi']:.1f}] %"
+        multi = f"all scales: {r['multi_biased']}/{r['trials']}, inconclusive {100 * r['multi_inconclusive']:.0f} %"
+        check = ""
+        if "check_runs" in r:
+            check = (f"\ncheck: biased {r['check_biased']}/{r['check_runs']}, equivalent "
+                     f"{100 * r['check_equivalent']:.0f} %, "
+                     f"inconclusive {100 * r['check_inconclusive']:.0f} %")  # fmt: skip
+        ax.set_title(f"{r['situation']}\n{rate}; {r['outcome']}\n{multi}; {r['multi_outcome']}{check}", fontsize=6.5)
         ax.tick_params(labelsize=7)
     for ax in axes.ravel()[len(rows) :]:
         ax.axis("off")

@@ -5,10 +5,11 @@ and takes the reference's n passes from one and the test's n passes from the oth
 trial takes the same n seeds from both pools. Trials resample one pool, so they are not fully independent: two
 trials at n = P/2 share most of their passes.
 
-Methods, all at alpha = 0.01: the tool's own `welch_core.compare` (Welch at tiles 16, 32, 64; the paired test;
-the paper's Gaussian variant) and two conventional baselines whose thresholds are calibrated on unbiased pairs to
-the same false-positive rate: the RMSE of the test's mean image against a converged reference, and the largest
-absolute tile-mean difference (a thresholded tile-wise difference image).
+Methods, all at alpha = 0.01: the tool's own `welch_core.compare` (Welch at one tile size each, 16, 32, 64 and
+128 = the whole image at 128² px, passed explicitly as `tile=`; Welch at every scale from 16², compare's default;
+the paired test likewise; the paper's Gaussian variant at 32²) and two conventional baselines whose thresholds are
+calibrated on unbiased pairs to the same false-positive rate: the RMSE of the test's mean image against a
+converged reference, and the largest absolute tile-mean difference (a thresholded tile-wise difference image).
 """
 
 from __future__ import annotations
@@ -23,26 +24,45 @@ import welch_core as wc
 ALPHA = 0.01
 BASE_TILE = 16
 #: Part of every cached trial result's key, with welch_core's source: bump it when a change here changes results.
-TRIALS_VERSION = 2
+TRIALS_VERSION = 3
 
-#: The tool's tests: (tile, test_kind, pvalue_method). Larger tiles are retiled from the tile-16 sums.
+#: The tool's tests: (tile, test_kind, pvalue_method); tile None is every scale from BASE_TILE (compare's default).
+#: A fixed tile is passed to `compare` as `tile=` (coarser tiles are summed from the tile-16 sums); a tile larger
+#: than the image is skipped (the quick run's 64² pools).
 COMPARE_METHODS = {
     "welch16": (16, "welch", "exact"),
     "welch32": (32, "welch", "exact"),
     "welch64": (64, "welch", "exact"),
+    "welch128": (128, "welch", "exact"),
+    "welch_multi": (None, "welch", "exact"),
     "gauss32": (32, "welch", "gauss"),
+    "paired16": (16, "paired", "exact"),
     "paired32": (32, "paired", "exact"),
+    "paired64": (64, "paired", "exact"),
+    "paired128": (128, "paired", "exact"),
+    "paired_multi": (None, "paired", "exact"),
 }
 #: Baselines with a threshold calibrated on unbiased pairs.
 CALIBRATED_METHODS = ("rmse", "tilediff16")
 METHODS = (*COMPARE_METHODS, *CALIBRATED_METHODS)
+UNPAIRED = tuple(m for m, (_t, kind, _p) in COMPARE_METHODS.items() if kind == "welch")
+PAIRED = tuple(m for m, (_t, kind, _p) in COMPARE_METHODS.items() if kind == "paired")
+#: The fixed designs of one tile size (the multi-scale and Gaussian variants aside), per test.
+FIXED_WELCH = ("welch16", "welch32", "welch64", "welch128")
+FIXED_PAIRED = ("paired16", "paired32", "paired64", "paired128")
 
 LABELS = {
     "welch16": "Welch, 16² tiles",
     "welch32": "Welch, 32² tiles",
     "welch64": "Welch, 64² tiles",
+    "welch128": "Welch, 128² (whole image)",
+    "welch_multi": "Welch multi-scale (from 16²)",
     "gauss32": "Welch + paper's Gaussian (ν ≥ 20), 32²",
+    "paired16": "paired t-test, 16² tiles",
     "paired32": "paired t-test, 32² tiles",
+    "paired64": "paired t-test, 64² tiles",
+    "paired128": "paired t-test, 128² (whole image)",
+    "paired_multi": "paired multi-scale (from 16²)",
     "rmse": "RMSE vs converged reference",
     "tilediff16": "largest tile-mean difference, 16²",
 }
@@ -84,14 +104,15 @@ def draw_paired(rng: np.random.Generator, passes: int, n: int) -> Draw:
 
 
 def compare_verdicts(ref_pool, test_pool, draw: Draw, methods) -> dict[str, str]:
-    """Verdict of each requested `COMPARE_METHODS` entry on one draw (all share its passes)."""
+    """Verdict of each requested `COMPARE_METHODS` entry on one draw (all share its passes); a method whose tile
+    does not fit the image is left out."""
     ref16, test16 = ref_pool.stats(draw.ref, BASE_TILE), test_pool.stats(draw.test, BASE_TILE)
     out = {}
     for name in methods:
         tile, kind, pmethod = COMPARE_METHODS[name]
-        factor = tile // BASE_TILE
-        ref, test = (ref16, test16) if factor == 1 else (ref16.retile(factor), test16.retile(factor))
-        out[name] = wc.compare(ref, test, ALPHA, test_kind=kind, pvalue_method=pmethod).verdict
+        if tile is not None and tile > min(ref16.height, ref16.width):
+            continue
+        out[name] = wc.compare(ref16, test16, ALPHA, test_kind=kind, pvalue_method=pmethod, tile=tile).verdict
     return out
 
 
