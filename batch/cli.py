@@ -46,6 +46,11 @@ def tolerance_arg(text: str) -> float:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def tolerance_or_off(text: str) -> float | None:
+    """argparse type: a percentage as `tolerance_arg`, or ``off`` (None: no `equivalent` verdict)."""
+    return None if text.strip().lower() == "off" else tolerance_arg(text)
+
+
 def _alpha(text: str) -> float:
     try:
         return wc.errors.check_alpha(float(text))
@@ -114,10 +119,11 @@ def build_parser() -> argparse.ArgumentParser:
     k.add_argument("--test-blender", metavar="PATH", help="Blender executable of the test side (default: --blender)")
     k.add_argument(
         "--tolerance",
-        type=tolerance_arg,
+        type=tolerance_or_off,
         default=0.01,
         metavar="PERCENT",
-        help="stop at `equivalent` once every tile is bounded within this relative difference (default 1%%)",
+        help="stop at `equivalent` once every tile is bounded within this relative difference (default 1%%; "
+        "`off`: stop only at `biased`, so that a bias smaller than any tolerance is found given the passes)",
     )
     k.add_argument(
         "--alpha", type=_alpha, default=DEFAULT_ALPHA, help="false-positive rate of either verdict (default 0.01)"

@@ -180,6 +180,7 @@ def equivalence_summary(eq: wc.Equivalence | None) -> dict[str, Any] | None:
         "tolerance": eq.tolerance,
         "equivalent": eq.equivalent,
         "tile": eq.tile,
+        "beyond": eq.beyond,
         "ruled_out": {str(tile): _num(bound) for tile, bound in eq.ruled_out.items()},
         "best": None if best is None else {"tile": best[0], "ruled_out": best[1]},
     }
@@ -193,7 +194,11 @@ def equivalence_sentence(summary: dict[str, Any]) -> str | None:
     tolerance = fmt.percent(eq["tolerance"]).lstrip("+")
     if eq["equivalent"]:
         tile = eq["tile"]
-        return f"the test converges to the reference within ±{tolerance} in every {tile}x{tile} tile"
+        return f"the test converges to the reference within ±{tolerance} in every {tile}x{tile} tile" + finer_clause(
+            summary, tile
+        )
+    if eq.get("beyond"):
+        return f"not equivalent within ±{tolerance}: a tile found biased differs by more than that"
     if eq["best"] is None:
         return f"not shown within ±{tolerance}: no tile size bounds the difference in every tile"
     tile, bound = eq["best"]["tile"], eq["best"]["ruled_out"]
@@ -201,6 +206,17 @@ def equivalence_sentence(summary: dict[str, Any]) -> str | None:
         f"not shown within ±{tolerance}: a bias beyond {fmt.percent(bound).lstrip('+')} is ruled out in every "
         f"{tile}x{tile} tile"
     )
+
+
+def finer_clause(summary: dict[str, Any], tile: int) -> str:
+    """What `equivalent` at `tile` does not say about the finest tiles: the bias their intervals leave open
+    (a local bias in a small tile can hide in a larger tile's mean)."""
+    eq, finest = summary.get("equivalence"), summary["grid"]["tile"]
+    if eq is None or tile == finest:
+        return ""
+    bound = eq["ruled_out"].get(str(finest))
+    open_ = "any bias" if bound is None else f"a bias up to {fmt.percent(bound).lstrip('+')}"
+    return f"; in {finest}x{finest} tiles {open_} is not ruled out"
 
 
 def layers_summary(
@@ -450,6 +466,7 @@ def console_lines(summary: dict[str, Any]) -> list[str]:
         lines.append(
             f"the test converges to the reference within ±{fmt.percent(check['tolerance']).lstrip('+')} in every "
             f"{tile}x{tile} tile (a bias beyond {fmt.percent(bound).lstrip('+')} is ruled out)"
+            + finer_clause(summary, tile)
         )
     equivalence = equivalence_sentence(summary) if check is None else None
     if equivalence is not None:

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 import welch_core as wc
-from batch import events
+from batch import cli, events
 from batch.scenes import WALL_COLOR_PATH
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -106,3 +106,13 @@ def test_ctrl_c_keeps_everything_and_resume_continues(tmp_path):
     assert after[-1]["passes"] > before[-1]["passes"]
     ref, test = wc.load_stats(tmp_path / "reference.npz"), wc.load_stats(tmp_path / "test.npz")
     assert set(ref.seeds).isdisjoint(test.seeds) and len(set(ref.seeds)) == ref.n
+
+
+def test_tolerance_off_means_no_equivalent_verdict():
+    from batch.check import check_job_from_args
+
+    args = cli.build_parser().parse_args(["check", "--scene", "corner", "--set", "cycles.film_exposure=1.01",
+                                          "--tolerance", "off", "--out", "x"])  # fmt: skip
+    assert args.tolerance is None and check_job_from_args(args).plan(16).tolerance is None
+    with pytest.raises(SystemExit):
+        cli.build_parser().parse_args(["check", "--scene", "corner", "--tolerance", "none", "--out", "x"])

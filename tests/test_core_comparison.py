@@ -405,6 +405,20 @@ def test_a_significant_difference_inside_the_tolerance_is_equivalent():
 
 
 @pytest.mark.slow
+def test_a_local_bias_beyond_the_tolerance_is_not_hidden_by_a_coarser_bound():
+    """+5 % in one of 64 tiles: the 64x64 scale bounds its region's mean within 1 %, but the tile itself is
+    significant at 16x16 and 5 % off, so the verdict is biased, not equivalent."""
+    rng = np.random.default_rng(1)
+    mean = np.full((8, 8, 3), 100.0)
+    shifted = mean.copy()
+    shifted[2, 3] *= 1.05
+    ref = TileStats.from_sums(rng.normal(mean, 3.0, (64, 8, 8, 3)), range(64), 128, 128, 16)
+    test = TileStats.from_sums(rng.normal(shifted, 3.0, (64, 8, 8, 3)), range(100, 164), 128, 128, 16)
+    c = compare(ref, test, tolerance=0.01)
+    assert c.verdict == "biased" and c.equivalence.tile == 64 and c.equivalence.beyond
+    assert not c.equivalence.equivalent
+
+
 def test_equivalent_is_calibrated_when_the_bias_equals_the_tolerance():
     """The worst case for a false `equivalent`: every tile off by exactly the tolerance. 1000 trials at alpha =
     0.05, tolerance 2 %, with enough passes that the intervals are near the tolerance: `equivalent` must come out

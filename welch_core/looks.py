@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .comparison import TileTest, assess_scales, bound_differences, choose_test
+from .comparison import TileTest, assess_scales, bound_differences, choose_test, significant_beyond
 from .errors import WelchInputError, check_alpha, check_int
 from .sequential import SPENDING, boundaries, nominal_levels
 from .tiles import TileStats
@@ -155,10 +155,12 @@ def sequential_look(ref: TileStats, test: TileStats, plan: SequentialPlan, fract
     verdict = None
     crossed, best = 0, (0.0, 1.0, 1.0)  # (log ratio of p to its level, p, level) of the strongest hypothesis
     deterministic = False
+    past = []  # per scale, the tile-channels past their boundary
     for scale, tested_tiles, level in zip(scales, tests, levels, strict=True):
         tested = scale.used[..., None] & (scale.reasons == Reason.VALID)
         p = np.where(tested, tested_tiles.result.pvalue, np.nan)
-        crossed += int(np.sum(p <= level))
+        past.append(p <= level)
+        crossed += int(np.sum(past[-1]))
         deterministic |= scale.n_deterministic > 0
         if np.isfinite(p).any() and level > 0:
             with np.errstate(divide="ignore"):
@@ -168,6 +170,8 @@ def sequential_look(ref: TileStats, test: TileStats, plan: SequentialPlan, fract
     if crossed or deterministic:
         verdict = Verdict.BIASED
     equivalence = bound_differences(scales, tests, list(levels), uncovered, plan.tolerance or math.inf)
+    if plan.tolerance is not None and equivalence.equivalent and significant_beyond(past, tests, plan.tolerance):
+        equivalence = dataclasses.replace(equivalence, beyond=True)  # a crossed tile differs by more than that
     relevant = ~(scales[0].reasons == Reason.ZERO_VARIANCE).all(axis=-1)
     covered_enough = uncovered.sum() <= 0.25 * relevant.sum()
     if plan.tolerance is not None and equivalence.equivalent and covered_enough:
