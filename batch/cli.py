@@ -89,7 +89,29 @@ def build_parser() -> argparse.ArgumentParser:
         "--serve",
         action="store_true",
         help="for programs: render the seeds in chunks, one per line of stdin giving the number of passes; the "
-        "scene stays loaded, the statistics are saved after each chunk",
+        "scene stays loaded, the statistics are saved after each chunk; or a JSON line "
+        '{"seeds": [...], "out": FILE} renders exactly those seeds into FILE',
+    )
+    where = r.add_mutually_exclusive_group()
+    where.add_argument(
+        "--workers",
+        type=jobs.positive_int,
+        metavar="N",
+        help="render on N worker processes on this machine (a Dask LocalCluster; the cores are split among them); "
+        "pays off for long runs. Needs the `workers` extra",
+    )
+    where.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="render on a running Dask cluster, e.g. tcp://head:8786; every worker needs this tool, its Blender and "
+        "the scene (and its textures) at the same path. Needs the `workers` extra",
+    )
+    r.add_argument(
+        "--chunk",
+        type=jobs.positive_int,
+        metavar="N",
+        help="passes a worker renders per task with --workers or --scheduler (default: about 4 tasks a worker, at "
+        "most 64); a worker that dies loses at most its chunk",
     )
 
     k = sub.add_parser(
@@ -351,7 +373,15 @@ def cmd_render(args) -> int:
 
     job = jobs.RenderJob.from_args(args)
     progress = Progress(len(job.seeds), args.json_progress)
-    if job.blender:
+    if args.workers or args.scheduler:
+        if args.serve:
+            raise BatchError("--serve renders in this process: it does not go with --workers or --scheduler")
+        from .distributed import render_distributed
+
+        render_distributed(job, progress, workers=args.workers, scheduler=args.scheduler, chunk=args.chunk)
+    elif args.chunk:
+        raise BatchError("--chunk goes with --workers or --scheduler")
+    elif job.blender:
         from .launch import run_job
 
         run_job(job, progress)

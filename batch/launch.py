@@ -8,6 +8,7 @@ Used by ``render --blender``, the Blender add-on's background runs and the worke
 from __future__ import annotations
 
 import collections
+import json
 import os
 import queue
 import signal
@@ -29,6 +30,10 @@ ENTRY_SCRIPT = ROOT / "batch" / "blender_entry.py"
 BLENDER_SCRIPT_FAILED = 4
 
 TAIL_LINES = 20  # output lines kept per stream for error messages
+
+#: Cycles' CPU threads of a render process, from its environment (`batch.run.limit_threads`): set by a worker
+#: that runs several render processes on one machine (`batch.distributed`). Unset: Cycles' own choice (all cores).
+THREADS_ENV = "WELCH_RENDER_THREADS"
 
 
 @dataclass(frozen=True)
@@ -68,6 +73,49 @@ def job_command(
     paths = [str(ROOT), *python_paths, *filter(None, env.get("PYTHONPATH", "").split(os.pathsep))]
     env["PYTHONPATH"] = os.pathsep.join(dict.fromkeys(paths))
     return Command([python, "-m", "batch", "render", *child.to_argv(), *mode], env)
+
+
+@dataclass(frozen=True)
+class ChunkRequest:
+    """A serving job's request for exactly `seeds` (all among the job's seeds), rendered into a new statistics
+    file `out` that holds those passes only; the job answers with a `Saved` event for `out`. A worker asks for
+    its chunks this way (`batch.distributed`).
+
+    On the job's stdin it is one JSON line, ``{"seeds": [4, 5, 6], "out": "/dev/shm/chunk-3.npz"}``: `to_line`
+    writes it, `parse_request` reads it (a plain count ``N`` asks for the job's next N seeds instead).
+    """
+
+    seeds: tuple[int, ...]
+    out: str
+
+    def __post_init__(self):
+        object.__setattr__(self, "seeds", tuple(self.seeds))
+
+    def to_line(self) -> str:
+        return json.dumps({"seeds": list(self.seeds), "out": self.out})
+
+
+def parse_request(line: str) -> int | ChunkRequest | None:
+    """What a line of a serving job's stdin asks for: a number of passes, a `ChunkRequest`, or None (anything
+    else, which ends the job)."""
+    text = line.strip()
+    if not text.startswith("{"):
+        try:
+            return int(text)
+        except ValueError:
+            return None
+    try:
+        data = json.loads(text)
+    except ValueError:
+        return None
+    if not isinstance(data, dict) or set(data) != {"seeds", "out"}:
+        return None
+    seeds, out = data["seeds"], data["out"]
+    if not isinstance(seeds, list) or not all(isinstance(s, int) and not isinstance(s, bool) for s in seeds):
+        return None
+    if not isinstance(out, str) or not out:
+        return None
+    return ChunkRequest(tuple(seeds), out)
 
 
 class JobProcess:
@@ -124,6 +172,14 @@ class JobProcess:
             self.popen.stdin.write(f"{passes}\n")
             self.popen.stdin.flush()
         except (BrokenPipeError, OSError):
+            pass  # it has ended: its exit code tells why
+
+    def request_chunk(self, chunk: ChunkRequest) -> None:
+        """Ask a serving job for exactly the passes of `chunk` (it answers with a `Saved` event for `chunk.out`)."""
+        try:
+            self.popen.stdin.write(chunk.to_line() + "\n")
+            self.popen.stdin.flush()
+        except (BrokenPipeError, OSError, ValueError):  # ValueError: its requests were closed meanwhile
             pass  # it has ended: its exit code tells why
 
     def close_requests(self) -> None:

@@ -14,6 +14,7 @@ from . import events, render
 from ._siblings import welch_core as wc
 from .errors import BatchError
 from .job import RenderJob
+from .launch import THREADS_ENV, ChunkRequest, parse_request
 from .lock import OutputLock
 from .overrides import apply_overrides, parse_override
 from .passes import add_pass
@@ -65,6 +66,24 @@ def prepare_scene(job: RenderJob, warn=None):
     return scene, info
 
 
+def limit_threads(scene, value: str | None = None) -> None:
+    """Give Cycles `value` CPU threads (default: the `batch.launch.THREADS_ENV` variable); nothing when it is
+    unset or empty. Not recorded with the run: the thread count does not change the image (Cycles draws each
+    pixel's samples from the seed whichever thread renders it; the distributed tests compare one thread against
+    the default)."""
+    text = os.environ.get(THREADS_ENV, "") if value is None else value
+    if not text.strip():
+        return
+    try:
+        threads = int(text)
+    except ValueError:
+        threads = 0
+    if not 1 <= threads <= 1024:  # 1024: the most Blender's render.threads takes
+        raise RunError(f"{THREADS_ENV} must be an integer in 1..1024, got {text!r}")
+    scene.render.threads_mode = "FIXED"
+    scene.render.threads = threads
+
+
 def _start_stats(job: RenderJob, scene, info: wc.RunInfo) -> wc.TileStats:
     """A new TileStats, or the checkpoint in `job.out` when resuming (checked to be the same run)."""
     width, height = render_size(scene)
@@ -90,15 +109,18 @@ def _start_stats(job: RenderJob, scene, info: wc.RunInfo) -> wc.TileStats:
 def render_run(job: RenderJob, progress: Progress, requests=None) -> wc.TileStats:
     """Render every seed of `job` not yet in its statistics file, checkpointing as it goes.
 
-    With `requests` (an iterable of pass counts, e.g. lines of stdin for ``render --serve``), the seeds are
-    rendered in chunks of those sizes, in order, the statistics saved after each chunk (a `Saved` event tells
-    the caller), until the requests end or the seeds run out: the scene stays loaded between chunks.
+    With `requests` (e.g. lines of stdin for ``render --serve``, read by `chunk_requests`), the scene stays
+    loaded and passes are rendered as asked, until the requests end or the seeds run out: a pass count N renders
+    the next N seeds into `job.out`, saved after each chunk; a `batch.launch.ChunkRequest` renders exactly its
+    seeds into its own new file (a worker's chunk, `batch.distributed`) and leaves `job.out` alone. Each chunk
+    ends with a `Saved` event naming the file it saved.
     """
     out_dir = os.path.dirname(os.path.abspath(job.out))
     if not os.access(out_dir, os.W_OK):
         raise RunError(f"can't write into {out_dir}: the folder is missing or not writable")
     with OutputLock(job.out):
         scene, info = prepare_scene(job, progress.warning)
+        limit_threads(scene)
         stats = _start_stats(job, scene, info)
         done = set(stats.seeds)
         todo = [seed for seed in job.seeds if seed not in done]
@@ -107,7 +129,11 @@ def render_run(job: RenderJob, progress: Progress, requests=None) -> wc.TileStat
             if requests is None:
                 render_passes(renderer, todo, stats, progress, job.on_nan, job.out, job.checkpoint_every, stop)
             else:
-                for count in requests:
+                for request in requests:
+                    if isinstance(request, ChunkRequest):
+                        _render_chunk(job, renderer, request, stats, progress, stop)
+                        continue
+                    count = request
                     chunk, todo = todo[: max(count, 0)], todo[max(count, 0) :]
                     render_passes(renderer, chunk, stats, progress, job.on_nan, job.out, len(chunk) + 1, stop)
                     wc.save_stats(job.out, stats)
@@ -118,13 +144,31 @@ def render_run(job: RenderJob, progress: Progress, requests=None) -> wc.TileStat
     return stats
 
 
+def _render_chunk(
+    job: RenderJob, renderer, request: ChunkRequest, like: wc.TileStats, progress: Progress, stop
+) -> None:
+    """Render exactly the seeds of `request` into a new statistics file of the same run as `like`, saved once at
+    the end (with the passes done so far when the chunk stops early), then tell the caller with a `Saved` event."""
+    allowed = set(job.seeds)
+    unknown = [seed for seed in request.seeds if seed not in allowed]
+    if unknown:
+        raise RunError(f"a chunk asks for seed {unknown[0]}, which is not in --seeds of this job")
+    chunk = wc.TileStats(like.height, like.width, like.tile, like.channels, like.info)
+    # Saved by render_passes once it ends, however it ends (with the passes done so far on a failure or a stop).
+    render_passes(renderer, request.seeds, chunk, progress, job.on_nan, request.out, len(request.seeds) + 1, stop)
+    if chunk.n == 0:
+        wc.save_stats(request.out, chunk)  # every pass was skipped (--on-nan skip): the file still answers
+    progress.emit(events.Saved(out=request.out, passes=chunk.n))
+
+
 def chunk_requests(stream):
-    """Pass counts, one per line of `stream` (``render --serve``); anything that is not a count ends the run."""
+    """What each line of `stream` asks for (``render --serve``): a pass count or a `ChunkRequest`; anything else
+    ends the run."""
     for line in stream:
-        try:
-            yield int(line)
-        except ValueError:
+        request = parse_request(line)
+        if request is None:
             return
+        yield request
 
 
 def render_passes(
