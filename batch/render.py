@@ -21,7 +21,7 @@ import numpy as np
 from ._siblings import welch_core as wc
 from .errors import BatchError
 from .job import DEFAULT_SAMPLING_PATTERNS, GPU_BACKENDS, NO_GPU_MESSAGE
-from .lobes import PASS_PROPERTIES, layers_from_channels
+from .lobes import COMPONENTS, LIGHTGROUP_PREFIX, PASS_PROPERTIES, layers_from_channels
 from .rna import jsonable, render_size
 from .scenes import BUILDER_VERSION, SCENES, build_scene
 
@@ -161,8 +161,6 @@ def _enable_lobes(changes: list[dict], scene: bpy.types.Scene, lobes: tuple[str,
                 _set(changes, layer.cycles, f"{prefix}.cycles", name.removeprefix("cycles."), True)
             else:
                 _set(changes, layer, prefix, name, True)
-    if "lightgroups" in lobes:
-        _add_named_lightgroups(changes, scene, layer)
     settings = scene.render.image_settings
     if "media_type" in settings.bl_rna.properties:  # 5.0: the media type first, or the format is refused
         _set(changes, settings, "render.image_settings", "media_type", "MULTI_LAYER_IMAGE")
@@ -237,9 +235,21 @@ def check_fixed_settings(scene, spp: int, resolution, overrides: list[dict]) -> 
             )
 
 
-def _add_named_lightgroups(changes: list[dict], scene: bpy.types.Scene, layer) -> None:
+def layer_names(scene: bpy.types.Scene, lobes: tuple[str, ...]) -> list[str]:
+    """The layers a pass of `scene` rendered with `lobes` has (`batch.lobes.layers_from_channels` order)."""
+    names = [lobe for lobe in lobes if lobe in COMPONENTS]
+    if "lightgroups" in lobes:
+        layer = bpy.context.view_layer if bpy.context.scene == scene else scene.view_layers[0]
+        names += [LIGHTGROUP_PREFIX + name for name in sorted(group.name for group in layer.lightgroups)]
+    return names
+
+
+def add_named_lightgroups(scene: bpy.types.Scene) -> list[dict]:
     """Light groups that objects or the world name but the view layer lacks are added to it (Blender ignores a
-    name the layer does not list), so ``--set objects["Lamp"].lightgroup=key`` is enough to make one."""
+    name the layer does not list), so ``--set objects["Lamp"].lightgroup=key`` is enough to make one. Called
+    after the overrides."""
+    changes: list[dict] = []
+    layer = bpy.context.view_layer if bpy.context.scene == scene else scene.view_layers[0]
     named = {obj.lightgroup for obj in scene.objects if getattr(obj, "lightgroup", "")}
     if scene.world is not None and getattr(scene.world, "lightgroup", ""):
         named.add(scene.world.lightgroup)
@@ -247,11 +257,7 @@ def _add_named_lightgroups(changes: list[dict], scene: bpy.types.Scene, layer) -
     for name in sorted(named - existing):
         layer.lightgroups.add(name=name)
         changes.append({"path": f"view_layers[{json.dumps(layer.name)}].lightgroups", "old": None, "new": name})
-    if not len(layer.lightgroups):
-        raise RenderSetupError(
-            f"--lobes lightgroups: view layer {layer.name!r} has no light groups and no light names one "
-            '(set one with --set objects["Light"].lightgroup=NAME)'
-        )
+    return changes
 
 
 def _sampling_pattern(scene, requested: str | None) -> str:

@@ -17,7 +17,7 @@ from .job import RenderJob
 from .launch import THREADS_ENV, ChunkRequest, parse_request
 from .lock import OutputLock
 from .overrides import apply_overrides, parse_override
-from .passes import add_pass
+from .passes import add_layered_pass, add_pass
 from .progress import Progress
 from .rna import render_size
 
@@ -38,12 +38,17 @@ def prepare_scene(job: RenderJob, warn=None):
     """
     overrides = [parse_override(text) for text in job.overrides]  # syntax errors before the slow part
     scene = render.open_scene(job.blend, job.scene, job.blend_scene)
-    changes = render.configure_unbiased(scene, job.device, job.spp, job.resolution, job.sampling_pattern)
+    changes = render.configure_unbiased(scene, job.device, job.spp, job.resolution, job.sampling_pattern, job.lobes)
     for change in changes:
         if warn is not None and change["path"].endswith(NOTABLE_CHANGES):
             warn(f"{change['path']} was {change['old']!r} in the scene; passes render with {change['new']!r}")
     applied = apply_overrides(scene, overrides)
     render.check_fixed_settings(scene, job.spp, job.resolution, applied)
+    if "lightgroups" in job.lobes:
+        render.add_named_lightgroups(scene)
+        if not render.layer_names(scene, ("lightgroups",)) and warn is not None:
+            warn('--lobes lightgroups: the scene has no light groups (make one with --set objects["Light"].lightgroup'
+                 "=NAME)")  # fmt: skip
     settings = render.scene_settings(scene)
     renderer = render.renderer_info(scene, job.device)
     if job.scene is not None:
@@ -106,6 +111,17 @@ def _start_stats(job: RenderJob, scene, info: wc.RunInfo) -> wc.TileStats:
     return stats
 
 
+def _start_layers(job: RenderJob, scene, stats: wc.TileStats) -> dict[str, wc.TileStats]:
+    """The layers of `job.lobes` (light components, light groups), new or those of the checkpoint."""
+    names = render.layer_names(scene, job.lobes)
+    if not os.path.exists(job.out):
+        return {name: wc.TileStats(stats.height, stats.width, stats.tile, 3, stats.info) for name in names}
+    layers = wc.load_layers(job.out)
+    if list(layers) != names:
+        raise RunError(f"can't resume {job.out}: it has layers {list(layers) or 'none'}, this run {names or 'none'}")
+    return layers
+
+
 def render_run(job: RenderJob, progress: Progress, requests=None) -> wc.TileStats:
     """Render every seed of `job` not yet in its statistics file, checkpointing as it goes.
 
@@ -122,12 +138,13 @@ def render_run(job: RenderJob, progress: Progress, requests=None) -> wc.TileStat
         scene, info = prepare_scene(job, progress.warning)
         limit_threads(scene)
         stats = _start_stats(job, scene, info)
+        layers = _start_layers(job, scene, stats)
         done = set(stats.seeds)
         todo = [seed for seed in job.seeds if seed not in done]
         progress.start(len(job.seeds) - len(todo), job.out)
-        with render.PassRenderer(scene) as renderer, StopRequest() as stop:
+        with render.PassRenderer(scene, lobes=job.lobes) as renderer, StopRequest() as stop:
             if requests is None:
-                render_passes(renderer, todo, stats, progress, job.on_nan, job.out, job.checkpoint_every, stop)
+                render_passes(renderer, todo, stats, progress, job.on_nan, job.out, job.checkpoint_every, stop, layers)
             else:
                 for request in requests:
                     if isinstance(request, ChunkRequest):
@@ -135,8 +152,8 @@ def render_run(job: RenderJob, progress: Progress, requests=None) -> wc.TileStat
                         continue
                     count = request
                     chunk, todo = todo[: max(count, 0)], todo[max(count, 0) :]
-                    render_passes(renderer, chunk, stats, progress, job.on_nan, job.out, len(chunk) + 1, stop)
-                    wc.save_stats(job.out, stats)
+                    render_passes(renderer, chunk, stats, progress, job.on_nan, job.out, len(chunk) + 1, stop, layers)
+                    wc.save_stats(job.out, stats, layers)
                     progress.emit(events.Saved(out=job.out, passes=stats.n))
                     if not todo:
                         break
@@ -180,8 +197,10 @@ def render_passes(
     out: str | None = None,
     checkpoint_every: int = 8,
     stop=None,
+    layers: dict[str, wc.TileStats] | None = None,
 ) -> None:
-    """Render `seeds` into `stats`; save `out` every `checkpoint_every` passes, at the end and on interruption.
+    """Render `seeds` into `stats` (and `layers`, each pass's light components and light groups); save `out` every
+    `checkpoint_every` passes, at the end and on interruption.
 
     `stop`, if given, is asked between passes whether to stop (raising KeyboardInterrupt, as Ctrl-C does).
     """
@@ -191,20 +210,24 @@ def render_passes(
             if stop is not None and stop.requested:
                 raise KeyboardInterrupt
             start = time.perf_counter()
-            image = renderer.render(seed)
             try:
-                if not add_pass(stats, image, seed, on_nan, progress.warning):
+                warn = progress.warning
+                if layers:
+                    added = add_layered_pass(stats, layers, renderer.render_layers(seed), seed, on_nan, warn)
+                else:
+                    added = add_pass(stats, renderer.render(seed), seed, on_nan, warn)
+                if not added:
                     continue
             except wc.WelchInputError as exc:
                 raise RunError(f"{exc} (use --on-nan skip or keep to go on)") from None
             pending += 1
             progress.pass_done(seed, time.perf_counter() - start)
             if out and pending >= checkpoint_every:
-                wc.save_stats(out, stats)
+                wc.save_stats(out, stats, layers)
                 pending = 0
     finally:
         if out and pending:
-            wc.save_stats(out, stats)  # also on Ctrl-C or a failed pass: nothing rendered is lost
+            wc.save_stats(out, stats, layers)  # also on Ctrl-C or a failed pass: nothing rendered is lost
 
 
 class StopRequest:

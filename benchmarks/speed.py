@@ -4,7 +4,7 @@ machine may be shared and noisy: baselines and candidates are interleaved and th
 Run from the repository root::
 
     python -m benchmarks.speed            # all four
-    python -m benchmarks.speed compare    # some: compare, passes, reseed, report
+    python -m benchmarks.speed compare    # some: compare, passes, reseed, report, lobes
 
 compare  ``python -m batch compare`` as a whole process (statistics files of 32 passes a side, 32x32 tiles, with
          their pixel sums) against ``python -c "import numpy, scipy.special"``, at 1024x576 and 3840x2160;
@@ -17,6 +17,8 @@ reseed   A re-seeded render of a scene with a homogeneous volume and a moving sp
          second render with the same seed (persistent data: nothing to re-sync). Goal: <= 1.2x.
 report   Writing the demo's report (summary, report.json, report.html, pvalues.exr) for its 128x128, 32-pass
          comparison. Goal: <= 0.1 s.
+lobes    A pass with the six light components (``--lobes``: the passes enabled, a multilayer EXR, six more tile
+         sums) against a plain pass, on the glossy scene at 128x128 and 256x256 (no goal: the cost is stated).
 
 Nothing is asserted: the figures go into the README.
 """
@@ -44,10 +46,10 @@ SIZES = {"1024x576": (576, 1024), "3840x2160": (2160, 3840)}
 TILE, PASSES = 32, 32
 
 
-def line(name: str, value: float, baseline: float, goal: float, unit: str = "s") -> None:
+def line(name: str, value: float, baseline: float, goal: float | None, unit: str = "s") -> None:
     ratio = value / baseline
-    mark = "meets" if ratio <= goal else "misses"
-    print(f"  {name:<58} {value:8.3f} {unit} / {baseline:8.3f} {unit} = {ratio:5.2f}x  ({mark} the goal {goal:g}x)")
+    verdict = "" if goal is None else f"  ({'meets' if ratio <= goal else 'misses'} the goal {goal:g}x)"
+    print(f"  {name:<58} {value:8.3f} {unit} / {baseline:8.3f} {unit} = {ratio:5.2f}x{verdict}")
 
 
 def synthetic_run(height: int, width: int, first_seed: int, rng: np.random.Generator) -> wc.TileStats:
@@ -149,6 +151,33 @@ def pass_times(size: int, passes: int = 24, blocks: int = 3) -> tuple[float, flo
     return statistics.median(timed["bare"]), statistics.median(timed["pipeline"])
 
 
+def bench_lobes(passes: int = 24, blocks: int = 3) -> None:
+    print("lobes: a pass with every light component (--lobes all) against a plain pass (glossy scene, 1 spp)")
+    bpy, render, scenes = _bpy_modules()
+    from batch.lobes import COMPONENTS
+    from batch.progress import Progress
+    from batch.run import render_passes
+
+    for size in (128, 256):
+        timed = {}
+        for name, lobes in (("plain", ()), ("lobes", COMPONENTS)):
+            scene = render.open_scene(None, "glossy")
+            render.configure_unbiased(scene, "CPU", 1, (size, size), "TABULATED_SOBOL", lobes=lobes)
+            progress = Progress(passes, live=False)
+            progress._silent = True
+            times = []
+            with render.PassRenderer(scene, lobes=lobes) as renderer:
+                for block in range(blocks):
+                    stats = wc.TileStats(size, size, 16, 3)
+                    layers = {n: wc.TileStats(size, size, 16, 3) for n in lobes}
+                    start = time.perf_counter()
+                    seeds = range(block * passes, (block + 1) * passes)
+                    render_passes(renderer, seeds, stats, progress, layers=layers or None)
+                    times.append((time.perf_counter() - start) / passes)
+            timed[name] = statistics.median(times)
+        line(f"a pass with 6 components at {size}x{size}", timed["lobes"] * 1e3, timed["plain"] * 1e3, None, "ms")
+
+
 def motion_volume_scene(bpy, scenes):
     """The corner scene with a homogeneous volume cube and a sphere moving through the shutter."""
     import bmesh
@@ -226,7 +255,13 @@ def bench_report(repeats: int = 5) -> None:
     line("compare + summary + report files for the demo", seconds, 0.1, 1.0)
 
 
-BENCHES = {"compare": bench_compare, "passes": bench_passes, "reseed": bench_reseed, "report": bench_report}
+BENCHES = {
+    "compare": bench_compare,
+    "passes": bench_passes,
+    "reseed": bench_reseed,
+    "report": bench_report,
+    "lobes": bench_lobes,
+}
 
 
 def main(argv: list[str] | None = None) -> int:
