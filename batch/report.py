@@ -126,7 +126,7 @@ def layers_section(summary: dict | None, comparisons: dict[str, wc.Comparison]) 
         largest = row["largest"]
         difference = (
             f"{fmt.percent(largest['rel_diff'])} [{fmt.percent(largest['ci_low'])}, {fmt.percent(largest['ci_high'])}]"
-            f" ({largest['channel']} at {largest['x']}, {largest['y']})"
+            f" ({largest['channel']} at {largest['x']}, {largest['y']}, {largest['size']} px tile)"
             if largest
             else "—"
         )

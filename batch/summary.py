@@ -236,6 +236,10 @@ def layers_summary(
         return None
     rows, comparisons = [], {}
     for name in names:
+        if not (np.any(ref_layers[name].sums) or np.any(test_layers[name].sums)):
+            rows.append({"name": name, "verdict": "empty", "verdict_text": "no light in either run", "p_value": None,
+                         "significant_tiles": 0, "share": 0.0, "largest": None})  # fmt: skip
+            continue
         c = wc.compare(ref_layers[name], test_layers[name], combined.alpha, combined.test, combined.pvalue_method)
         comparisons[name] = c
         rows.append({
@@ -243,7 +247,7 @@ def layers_summary(
             "verdict": c.verdict.label,
             "verdict_text": c.verdict.text,
             "p_value": _num(c.p_value),
-            "significant_tiles": int(c.significant.sum()),
+            "significant_tiles": sum(int(s.significant.sum()) for s in c.scales),
             "share": _num(float(ref_layers[name].sums.sum() / ref.sums.sum())) if ref.sums.sum() else None,
             "largest": _largest_effect(c),
         })  # fmt: skip
@@ -271,13 +275,18 @@ def lobes_sum_error(run: wc.TileStats, layers: dict[str, wc.TileStats]) -> float
 
 
 def _largest_effect(c: wc.Comparison) -> dict[str, Any] | None:
-    """The tile-channel with the largest relative difference among those tested."""
-    valid = (c.reasons == wc.Reason.VALID) & np.isfinite(c.effect.rel_diff)
-    if not valid.any():
+    """The difference of the most significant tile-channel, at the tile size that tested it best (a layer's
+    difference is often clearest in larger tiles than the image's)."""
+    scales = [s for s in c.scales if (s.used[..., None] & (s.reasons == wc.Reason.VALID)).any()]
+    if not scales:
         return None
-    magnitude = np.where(valid, np.abs(c.effect.rel_diff), -1.0)
-    row, col, ch = np.unravel_index(int(np.argmax(magnitude)), magnitude.shape)
+    s = min(scales, key=lambda scale: np.nan_to_num(scale.p_value, nan=2.0))
+    tested = s.used[..., None] & (s.reasons == wc.Reason.VALID)
+    p = np.where(tested, s.pvalues, np.inf)
+    row, col, ch = np.unravel_index(int(np.argmin(p)), p.shape)
+    c = s
     return {
+        "size": int(c.tile),
         "x": int(col * c.tile),
         "y": int(row * c.tile),
         "channel": "RGB"[ch] if c.pvalues.shape[-1] == 3 else int(ch),
@@ -483,6 +492,9 @@ def layer_lines(layers: dict[str, Any] | None) -> list[str]:
         return []
     lines = []
     for row in layers["layers"]:
+        if row["verdict"] == "empty":
+            lines.append(f"layer {row['name']}: {row['verdict_text']}")
+            continue
         largest = row["largest"]
         effect = f", largest difference {fmt.percent(largest['rel_diff'])}" if largest else ""
         lines.append(f"layer {row['name']}: {row['verdict_text']} (p {fmt.p_is(row['p_value'])}{effect})")

@@ -124,6 +124,29 @@ def test_uniformity_pvalue_is_the_one_sided_ks_test():
     assert uniformity_pvalue(p) == stats.kstest(p, "uniform", alternative="greater").pvalue
 
 
+@pytest.mark.parametrize(
+    ("p", "expected"),
+    [([2e-23], 2e-23), ([1e-5, 2e-5], 4e-10), ([1e-200, 3e-200, 0.4], None)],
+)
+def test_uniformity_pvalue_of_few_tiny_p_values_keeps_its_precision(p, expected):
+    """With n(1 - D+) < 1 the one-sided KS p-value is (1 - D+)^n exactly; 1 - D+ must not be formed by
+    cancellation (a whole-image tile's p of 2e-23 gave 0, shown as '< 1e-300'). The oracle: mpmath at 50 digits of
+    the same closed form."""
+    import mpmath
+
+    mpmath.mp.dps = 50
+    ordered = sorted(p)
+    n = len(ordered)
+    d = max(mpmath.mpf(i + 1) / n - mpmath.mpf(q) for i, q in enumerate(ordered))
+    oracle = (1 - d) ** n if d > 1 - mpmath.mpf(1) / n else None
+    got = uniformity_pvalue(p)
+    if oracle is not None:
+        assert got == pytest.approx(float(oracle), rel=1e-12)
+    if expected is not None:
+        assert got == pytest.approx(expected, rel=1e-12)
+    assert got > 0
+
+
 def test_global_test_components():
     rng = np.random.default_rng(28)
     p = rng.uniform(size=(8, 12))

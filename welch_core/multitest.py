@@ -71,6 +71,11 @@ def uniformity_pvalue(pvalues: npt.ArrayLike) -> float:
     ordered = np.sort(p)
     n = ordered.size
     d_plus = max(float(np.max(np.arange(1, n + 1) / n - ordered)), 0.0)
+    if d_plus > 1.0 - 1.0 / n:
+        # Where n(1 - D+) < 1 the survival function is (1 - D+)^n, and 1 - D+ = min(p_(i) + 1 - i/n) computed
+        # without the cancellation of 1 - D+ (a single tile's p of 1e-23 gave 0 instead of 1e-23).
+        complement = float(np.min(ordered + (n - np.arange(1, n + 1)) / n))
+        return complement**n
     return float(special.smirnov(n, d_plus))
 
 
