@@ -116,3 +116,24 @@ def test_zoom_and_screenshot(page, tmp_path):
 def _centre(page):
     box = page.locator("#canvas").bounding_box()
     return box["x"] + box["width"] * 0.55, box["y"] + box["height"] * 0.45
+
+
+def test_a_report_with_layers_and_untestable_scales_is_drawn(page, tmp_path):
+    """Layers (ingest --layers) and a run whose coarsest scales have no p-value (null in the page's data): the page
+    draws, shows a row per layer, and no script error occurs."""
+    from batch import cli
+    from tests.test_batch_lobes import ingest_layers
+
+    ref = ingest_layers(tmp_path, "ref", range(0, 12))
+    test = ingest_layers(tmp_path, "test", range(100, 112), glossy_scale=1.2)
+    cli.main(["compare", ref, test, "--out", str(tmp_path / "r")])
+    layers = page[0].context.browser.new_page()  # the browser of the demo's page: one browser per module
+    errors = []
+    layers.on("pageerror", lambda error: errors.append(str(error)))
+    layers.goto((tmp_path / "r" / "report.html").as_uri())
+    layers.wait_for_function("document.body.dataset.drawn === 'yes'", timeout=20000)
+    assert errors == []
+    assert layers.locator("#layers tr.layer").count() == 2
+    assert layers.evaluate("[...document.querySelectorAll('#layers img')].every(i => i.naturalWidth > 0)")
+    assert layers.evaluate("fmtP(null)") == "n/a"
+    layers.close()
