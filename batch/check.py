@@ -50,6 +50,10 @@ class CheckJob:
     #: The reference is a finished statistics file (a suite's blessed reference), not rendered: only the test
     #: side renders, and the looks' information fractions count its passes against the reference's fixed ones.
     fixed_reference: bool = False
+    #: Render the passes on a Dask cluster (batch.distributed): local worker processes, or a running cluster.
+    workers: int | None = None
+    scheduler: str | None = None
+    threads: int | None = None  # Cycles threads of each render process on the cluster (None: its default)
 
     def plan(self, max_passes: int) -> wc.SequentialPlan:
         return wc.SequentialPlan(max_passes=max_passes, alpha=self.alpha, tolerance=self.tolerance)
@@ -87,6 +91,7 @@ class _Side:
     passes: int = 0
     progress: Progress | None = None  # its live line, on a terminal
     fixed: bool = False  # a finished statistics file: never rendered
+    pool: object = None  # a batch.distributed.PassPool where the passes render on a cluster
 
 
 class Check:
@@ -102,6 +107,7 @@ class Check:
         self.looks: list[dict] = []
         self.plan = job.plan(job.max_passes) if job.max_passes else None
         self.render_seconds = 0.0
+        self._cluster = None  # a LocalCluster both sides' pools share (--workers)
 
     # -- state on disk ---------------------------------------------------------------------------------------
 
@@ -152,15 +158,43 @@ class Check:
                 side.passes = wc.load_stats(side.job.out, pixels=False).n
             elif side.fixed:
                 raise BatchError(f"the reference {side.job.out} does not exist")
-            if not side.fixed:
+            if side.fixed:
+                continue
+            if self.job.workers or self.job.scheduler:
+                side.pool = self._pool(side.job)
+                if side.progress is not None:
+                    side.progress.start(side.passes, side.job.out)
+            else:
                 side.process = JobProcess(job_command(side.job, serve=True), requests=True)
+
+    def _pool(self, job: RenderJob):
+        """A pass pool for one side; with local workers both sides share one cluster (started with the first)."""
+        from . import distributed
+
+        if self.job.scheduler:
+            return distributed.PassPool(job, scheduler=self.job.scheduler, threads=self.job.threads)
+        if self._cluster is None:
+            self._cluster = distributed.local_cluster(self.job.workers)
+        threads = distributed.local_threads(self.job.workers)
+        return distributed.PassPool(job, scheduler=self._cluster.scheduler_address, threads=threads)
 
     def _stop(self) -> None:
         for side in self.sides:
             if side.process is not None:
                 side.process.stop()
+        self._close_pools()
+
+    def _close_pools(self) -> None:
+        for side in self.sides:
+            if side.pool is not None:
+                side.pool.close()
+                side.pool = None
+        if self._cluster is not None:
+            self._cluster.close()
+            self._cluster = None
 
     def _finish(self) -> None:
+        self._close_pools()
         for side in self.sides:
             if side.process is not None:
                 side.process.close_requests()
@@ -174,6 +208,10 @@ class Check:
     def _render_to(self, passes: int) -> None:
         """Both sides up to `passes` passes (at once: the sides share the machine, the chunk takes the longer)."""
         start = time.perf_counter()
+        if self.job.workers or self.job.scheduler:
+            self._render_on_pools(passes)
+            self.render_seconds += time.perf_counter() - start
+            return
         waiting = []
         for side in self._rendered():
             if side.passes < passes:
@@ -193,6 +231,28 @@ class Check:
             if waiting:
                 time.sleep(0.005)
         self.render_seconds += time.perf_counter() - start
+
+    def _render_on_pools(self, passes: int) -> None:
+        """Both sides up to `passes` passes on the cluster: every chunk of both submitted first, so they render at
+        once; each side's file saved in seed order, as one process saves it."""
+        from . import distributed
+
+        waiting = [side for side in self._rendered() if side.passes < passes]
+        for side in waiting:
+            seeds = list(side.job.seeds[side.passes : passes])
+            size = distributed.default_chunk(len(seeds), side.pool.parallelism() or 1)
+            for first in range(0, len(seeds), size):
+                side.pool.submit(seeds[first : first + size])
+        for side in waiting:
+            stats = wc.load_stats(side.job.out) if Path(side.job.out).exists() else None
+            for result in side.pool:
+                stats = distributed.accumulate(stats, result, side.job)
+                for message in result.warnings:
+                    self.progress.warning(f"{side.name}: {result.worker}: {message}")
+                if side.progress is not None:
+                    for seed in result.seeds:
+                        side.progress.pass_done(seed, result.wall_seconds / max(len(result.seeds), 1))
+            side.passes = distributed.save_in_seed_order(side.job, stats).n
 
     def _rendered(self) -> list[_Side]:
         return [side for side in self.sides if not side.fixed]

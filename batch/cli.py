@@ -164,6 +164,7 @@ def build_parser() -> argparse.ArgumentParser:
     k.add_argument("--device", default="CPU", choices=jobs.DEVICES, help="Cycles device (default CPU)")
     k.add_argument("--sampling-pattern", metavar="PATTERN", help="Cycles sampling pattern (as render)")
     k.add_argument("--unpaired", action="store_true", help="disjoint seeds even on one build (an A/A check)")
+    add_cluster_arguments(k)
     k.add_argument(
         "--lobes",
         type=jobs.lobes_arg,
@@ -304,6 +305,7 @@ def build_parser() -> argparse.ArgumentParser:
                 help="an override for every case's test side (a planted change)",
             )
             a.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")
+            add_cluster_arguments(a)
             a.add_argument(
                 "--seed-offset",
                 type=jobs.non_negative_int,
@@ -318,6 +320,20 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--passes", type=jobs.positive_int, default=None, help="passes per side")
     d.add_argument("--resolution", type=jobs.positive_int, default=None, help="square image size in pixels")
     return parser
+
+
+def add_cluster_arguments(parser) -> None:
+    """--workers / --scheduler of commands that decide as they render (check, suite run)."""
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument(
+        "--workers",
+        type=jobs.positive_int,
+        metavar="N",
+        help="render the passes on N worker processes on this machine (a Dask LocalCluster shared by both sides)",
+    )
+    where.add_argument(
+        "--scheduler", metavar="ADDRESS", help="render the passes on a running Dask cluster, e.g. tcp://head:8786"
+    )
 
 
 def argv_after_dashdash(argv: list[str]) -> list[str]:
@@ -561,6 +577,7 @@ def cmd_suite(args) -> int:
         args.resume,
         say,
         args.seed_offset,
+        (args.workers, args.scheduler),
     )
     summary = suites.write_outputs(suite, outcomes, out, refs)
     failed = [o.label for o in outcomes if o.status == "failed"]

@@ -571,7 +571,7 @@ def _render(job, todo, stats, progress, workers, scheduler, chunk, threads, reso
         last = time.perf_counter()
         try:
             for result in pool:
-                stats = _accumulate(stats, result, job)
+                stats = accumulate(stats, result, job)
                 unsaved += len(result.seeds)
                 for message in result.warnings:
                     progress.warning(f"{result.worker}: {message}")
@@ -580,14 +580,15 @@ def _render(job, todo, stats, progress, workers, scheduler, chunk, threads, reso
                 for seed in result.seeds:
                     progress.pass_done(seed, per_pass)
                 if unsaved >= job.checkpoint_every:
-                    stats, unsaved = _save(job, stats), 0
+                    stats, unsaved = save_in_seed_order(job, stats), 0
         finally:
             if unsaved:  # also on Ctrl-C or a failure: nothing that arrived is lost
-                stats = _save(job, stats)
+                stats = save_in_seed_order(job, stats)
     return stats
 
 
-def _accumulate(stats: wc.TileStats | None, result: ChunkResult, job: RenderJob) -> wc.TileStats:
+def accumulate(stats: wc.TileStats | None, result: ChunkResult, job: RenderJob) -> wc.TileStats:
+    """`stats` with the passes of a finished chunk added (the chunk's statistics when `stats` is None)."""
     chunk = result.stats()
     if stats is None:
         return chunk
@@ -600,7 +601,7 @@ def _accumulate(stats: wc.TileStats | None, result: ChunkResult, job: RenderJob)
     return stats
 
 
-def _save(job: RenderJob, stats: wc.TileStats) -> wc.TileStats:
+def save_in_seed_order(job: RenderJob, stats: wc.TileStats) -> wc.TileStats:
     """Save `stats` with its passes in the order of `job.seeds` (what one process writes); return that order."""
     position = {seed: i for i, seed in enumerate(job.seeds)}
     order = sorted(range(stats.n), key=lambda i: position[stats.seeds[i]])

@@ -36,6 +36,7 @@ Nothing here imports bpy: the renders run in their own processes through the ren
 
 from __future__ import annotations
 
+import contextlib
 import fnmatch
 import json
 import os
@@ -378,10 +379,12 @@ def exit_code(outcomes: list[Outcome]) -> int:
 
 def run_suite(suite: Suite, cases: list[Case], refs: Path, out: Path, progress_factory, blender=None,
               device: str | None = None, overrides: tuple[str, ...] = (), resume: bool = False,
-              say=print, seed_offset: int = 0) -> list[Outcome]:  # fmt: skip
+              say=print, seed_offset: int = 0, cluster=(None, None)) -> list[Outcome]:  # fmt: skip
     """Decide every case on every device (its own, or `device` for all) against its reference in `refs`;
     `overrides` go to every case's test side (a planted change). The test side's seeds start `seed_offset`
-    after the reference's last one: the same run gives the same answer, another offset draws new passes."""
+    after the reference's last one: the same run gives the same answer, another offset draws new passes.
+    `cluster` is (local workers, scheduler address) to render the passes on Dask (one local cluster for all
+    cases), or (None, None)."""
     missing = [c.name for c in cases if not reference_path(refs, c).exists()]
     if missing:
         raise BatchError(f"no reference for {', '.join(missing)} in {refs}: run `suite bless` first")
@@ -390,16 +393,35 @@ def run_suite(suite: Suite, cases: list[Case], refs: Path, out: Path, progress_f
         taken = [str(out / c.name / d) for c, d in runs if (out / c.name / d).exists()]
         if taken:
             raise BatchError(f"{taken[0]} already exists: pass --resume to continue the run, or another --out")
-    outcomes = []
-    for number, (case, dev) in enumerate(runs, 1):
-        say(f"suite run: {number}/{len(runs)} {case.name} on {dev}")
-        outcome = _run_case(suite, case, dev, refs, out, progress_factory, blender, overrides, resume, seed_offset)
-        say(f"  {outcome.status}: {outcome.message}")
-        outcomes.append(outcome)
+    workers, scheduler = cluster
+    with _cluster(workers, scheduler) as where:
+        outcomes = []
+        for number, (case, dev) in enumerate(runs, 1):
+            say(f"suite run: {number}/{len(runs)} {case.name} on {dev}")
+            outcome = _run_case(
+                suite, case, dev, refs, out, progress_factory, blender, overrides, resume, seed_offset, where
+            )
+            say(f"  {outcome.status}: {outcome.message}")
+            outcomes.append(outcome)
     return outcomes
 
 
-def _run_case(suite, case, device, refs, out, progress_factory, blender, overrides, resume, seed_offset) -> Outcome:
+@contextlib.contextmanager
+def _cluster(workers: int | None, scheduler: str | None):
+    """{"scheduler", "threads"} for the cases' checks: a LocalCluster started once for all cases with `workers`,
+    the given scheduler, or nothing (each case renders in its own processes)."""
+    if workers:
+        from . import distributed
+
+        with distributed.local_cluster(workers) as local:
+            yield {"scheduler": local.scheduler_address, "threads": distributed.local_threads(workers)}
+    else:
+        yield {"scheduler": scheduler} if scheduler else {}
+
+
+def _run_case(
+    suite, case, device, refs, out, progress_factory, blender, overrides, resume, seed_offset, where
+) -> Outcome:
     from . import summary as summaries
 
     folder = out / case.name / device
@@ -417,6 +439,7 @@ def _run_case(suite, case, device, refs, out, progress_factory, blender, overrid
         tolerance=case.tolerance,
         resume=resume and (folder / "check.json").exists(),
         fixed_reference=True,
+        **where,
     )
     start = time.perf_counter()
     try:

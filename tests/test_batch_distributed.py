@@ -5,6 +5,7 @@ costs only that chunk, Ctrl-C keeps what arrived and --resume completes it, a SL
 Skipped without the ``workers`` extra (dask[distributed], dask-jobqueue).
 """
 
+import json
 import os
 import pickle
 import shutil
@@ -415,3 +416,43 @@ def test_a_relative_blend_path_means_the_clients_folder(cluster, tmp_path, monke
     job = RenderJob(out="cube.npz", seeds=(0, 1, 2), blend="cube.blend", resolution=(32, 32), tile=16)
     stats = dist.render_distributed(job, Recorder(3), scheduler=cluster, chunk=2)
     assert stats.seeds == [0, 1, 2] and stats.info.scene == "cube.blend/Scene"
+
+
+WALLS_021 = 'materials["Walls"].node_tree.nodes["Diffuse BSDF"].inputs["Color"].default_value=0.21,0.21,0.21,1'
+
+
+def run_cli(*args, check=None):
+    done = subprocess.run([sys.executable, "-m", "batch", *map(str, args)], capture_output=True, text=True)
+    if check is not None:
+        assert done.returncode == check, done.stdout[-2000:] + done.stderr[-2000:]
+    return done
+
+
+@pytest.mark.slow
+def test_check_on_workers_decides_as_one_process_does(tmp_path):
+    """The same check (walls 0.21, paired) with both sides on 2 local workers and in serving processes: the same
+    looks, the same passes, the same verdict."""
+    common = ["check", "--scene", "corner", "--set", WALLS_021, "--resolution", "32", "32", "--tile", "8",
+              "--max-passes", "16", "--sampling-pattern", "TABULATED_SOBOL"]  # fmt: skip
+    run_cli(*common, "--out", tmp_path / "one", check=1)
+    run_cli(*common, "--workers", "2", "--out", tmp_path / "two", check=1)
+    looks = [json.loads((tmp_path / name / "check.json").read_text())["looks"] for name in ("one", "two")]
+    for look in looks:
+        for record in look:
+            record.pop("seconds")
+    assert looks[0] == looks[1] and looks[0][-1]["verdict"] == "biased"
+    for side in ("reference", "test"):
+        one, two = (wc.load_stats(tmp_path / name / f"{side}.npz") for name in ("one", "two"))
+        assert_same_statistics(two, one)
+
+
+@pytest.mark.slow
+def test_suite_run_on_workers(tmp_path):
+    suite = tmp_path / "suite.toml"
+    suite.write_text('[defaults]\nresolution = [16, 16]\ntile = 8\npasses = 8\nsampling_pattern = "TABULATED_SOBOL"\n'
+                     '[[case]]\nname = "walls"\nscene = "corner"\n'
+                     '[[case]]\nname = "mirror"\nscene = "glossy_sharp"\n')  # fmt: skip
+    run_cli("suite", "bless", suite, "--refs", tmp_path / "refs", check=0)
+    done = run_cli("suite", "run", suite, "--refs", tmp_path / "refs", "--out", tmp_path / "out", "--workers", "2",
+                   "--set", "cycles.film_exposure=1.2", check=1)  # fmt: skip
+    assert "failed: walls [CPU], mirror [CPU]" in done.stdout
