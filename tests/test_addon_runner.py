@@ -78,7 +78,8 @@ def _session(tmp_path, modes, passes=4):
 
 
 def test_session_runs_both_sides_and_tracks_progress(tmp_path):
-    session, temp_copy = _session(tmp_path, ["ok", "warn"])
+    # "slow" on the first side: a loaded machine must not let it finish within the first poll.
+    session, temp_copy = _session(tmp_path, ["slow", "warn"])
     assert session.poll() == runner.RUNNING
     assert session.status_text().startswith("Reference:")
     fractions = []
