@@ -287,15 +287,21 @@ def _volume_material(name: str, density: float, noise: bool) -> bpy.types.Materi
     out = tree.nodes.new("ShaderNodeOutputMaterial")
     tree.links.new(scatter.outputs["Volume"], out.inputs["Volume"])
     if noise:
-        texture = tree.nodes.new("ShaderNodeTexNoise")
-        texture.inputs["Scale"].default_value = 3.0
-        scale = tree.nodes.new("ShaderNodeMath")
-        scale.name = "Density"
-        scale.operation = "MULTIPLY"
-        scale.inputs[1].default_value = density
-        tree.links.new(texture.outputs["Fac"], scale.inputs[0])
-        tree.links.new(scale.outputs["Value"], scatter.inputs["Density"])
+        noise_density(tree, scatter.inputs["Density"], density, 3.0)
     return material
+
+
+def noise_density(tree, density_input, factor: float, scale: float) -> None:
+    """Drive a volume's density input with a noise texture (of `scale`) times `factor`, through a Math node named
+    "Density" (whose second input the overrides change)."""
+    texture = tree.nodes.new("ShaderNodeTexNoise")
+    texture.inputs["Scale"].default_value = scale
+    multiply = tree.nodes.new("ShaderNodeMath")
+    multiply.name = "Density"
+    multiply.operation = "MULTIPLY"
+    multiply.inputs[1].default_value = factor
+    tree.links.new(texture.outputs["Fac"], multiply.inputs[0])
+    tree.links.new(multiply.outputs["Value"], density_input)
 
 
 def _box(scene, name: str, center, half: float, material) -> bpy.types.Object:
