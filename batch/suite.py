@@ -24,6 +24,7 @@ A suite file::
     tolerance = "2%"          # optional: stop early at `equivalent` once every tile is bounded within it
     expect = "same"           # or "biased": a known difference, the case passes when it is found
     sampling_pattern = "TABULATED_SOBOL"
+    test_sampling_pattern = "BLUE_NOISE"  # optional: the test side's pattern (a known difference between them)
     why = "what the case exercises and why its size and budget suffice"
 
 References live in a folder (``--refs``): ``<case>.npz`` (the statistics, with what rendered them) and
@@ -62,7 +63,7 @@ EXPECTATIONS = ("same", "biased")
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 _CASE_KEYS = {
     "name", "scene", "blend", "blend_scene", "set", "resolution", "spp", "tile", "passes", "seconds", "devices",
-    "tolerance", "expect", "sampling_pattern", "why", "planted",
+    "tolerance", "expect", "sampling_pattern", "test_sampling_pattern", "why", "planted",
 }  # fmt: skip
 
 
@@ -84,11 +85,14 @@ class Case:
     tolerance: float | None = None
     expect: str = "same"
     sampling_pattern: str | None = None
+    test_sampling_pattern: str | None = None  # the test side's, where it differs from the reference's on purpose
     why: str = ""
     planted: str | None = None  # a change of the case's feature that it must find (documentation, benchmarks)
 
-    def job(self, out: str, seeds, device: str, blender: str | None, extra: tuple[str, ...] = ()) -> RenderJob:
-        """The render job of one side of this case."""
+    def job(
+        self, out: str, seeds, device: str, blender: str | None, extra: tuple[str, ...] = (), test: bool = False
+    ) -> RenderJob:
+        """The render job of one side of this case (`test`: the test side)."""
         return RenderJob(
             out=out,
             seeds=tuple(seeds),
@@ -99,7 +103,7 @@ class Case:
             blend_scene=self.blend_scene,
             resolution=self.resolution,
             device=device,
-            sampling_pattern=self.sampling_pattern,
+            sampling_pattern=(self.test_sampling_pattern or self.sampling_pattern) if test else self.sampling_pattern,
             overrides=self.overrides + tuple(extra),
             blender=blender,
             checkpoint_every=max(self.passes, 1),
@@ -220,6 +224,7 @@ def _case(entry: dict, label: str, folder: Path) -> Case:
         tolerance=tolerance,
         expect=expect,
         sampling_pattern=_typed(entry, "sampling_pattern", str, label, None),
+        test_sampling_pattern=_typed(entry, "test_sampling_pattern", str, label, None),
         why=_typed(entry, "why", str, label, ""),
         planted=_typed(entry, "planted", str, label, None),
         **numbers,
@@ -431,7 +436,7 @@ def _run_case(
     count = budget or 100_000
     job = CheckJob(
         reference=case.job(str(reference_path(refs, case)), reference.seeds, reference.info.device or "CPU", None),
-        test=case.job(str(folder / "test.npz"), range(first, first + count), device, blender, overrides),
+        test=case.job(str(folder / "test.npz"), range(first, first + count), device, blender, overrides, test=True),
         out=str(folder),
         max_passes=budget,
         max_seconds=case.seconds,

@@ -52,7 +52,10 @@ def main(argv: list[str] | None = None) -> int:
     for case in cases:
         for repeat in range(args.repeats):
             same = run_case(suite, case, refs, out, planted=False, repeat=repeat)
-            changed = run_case(suite, case, refs, out, planted=True, repeat=repeat)
+            if case.planted is None:  # a known difference (expect = "biased"): its A/A run is the test itself
+                changed = same
+            else:
+                changed = run_case(suite, case, refs, out, planted=True, repeat=repeat)
             rows.append({
                 "case": case.name, "repeat": repeat, "aa_verdict": same.verdict or same.status,
                 "aa_passes": same.passes, "aa_seconds": round(same.seconds, 2),

@@ -64,12 +64,16 @@ def test_a_suite_file_with_defaults(tmp_path):
     (tmp_path / "s.blend").write_bytes(b"BLENDER")
     path = write_suite(tmp_path, '[suite]\nname = "mine"\nalpha = 0.05\n[defaults]\nresolution = [16, 8]\n'
                                  'tile = 4\n' + CASE + 'tolerance = "0.5%"\nexpect = "biased"\n'
+                                 'sampling_pattern = "TABULATED_SOBOL"\ntest_sampling_pattern = "BLUE_NOISE"\n'
                                  '[[case]]\nname = "b"\nblend = "s.blend"\ntile = 8\ndevices = ["CPU", "OPTIX"]\n'
                                  'set = ["cycles.max_bounces=4"]\nseconds = 30\n')  # fmt: skip
     suite = suites.load_suite(str(path))
     assert suite.name == "mine" and suite.alpha == 0.05
     a, b = suite.cases
     assert (a.resolution, a.tile, a.tolerance, a.expect, a.passes) == ((16, 8), 4, 0.005, "biased", 64)
+    assert a.job("r.npz", [1], "CPU", None).sampling_pattern == "TABULATED_SOBOL"
+    assert a.job("t.npz", [2], "CPU", None, test=True).sampling_pattern == "BLUE_NOISE"
+    assert b.job("t.npz", [2], "CPU", None, test=True).sampling_pattern is None
     assert b.blend == str(tmp_path / "s.blend") and b.tile == 8 and b.devices == ("CPU", "OPTIX")
     assert b.overrides == ("cycles.max_bounces=4",) and b.seconds == 30.0
     assert suite.select(["b*"]) == [b]
