@@ -276,9 +276,9 @@ def build_parser() -> argparse.ArgumentParser:
         "reference; `suite run` renders each case with the current build on new seeds and decides it against "
         "its reference with the render-until-decided engine, writing junit.xml, summary.json and a dashboard "
         "(index.html). SUITE may be `builtin`: one minimal scene per Cycles feature, with shipped references.",
-        epilog="Exit codes of run: 0 every case passed, 1 a case failed (an unexpected `biased`, or an expected "
-        "difference not found), 2 a usage error or a case that could not run, 3 a case is inconclusive. bless: "
-        "1 when a re-bless was refused.",
+        epilog="Exit codes of run: 0 every case passed, 1 a case is `biased` where it should not be, 2 a usage "
+        "error or a case that could not run, 3 a case is inconclusive or an expected difference was not found. "
+        "bless: 1 when a re-bless was refused (the new render is biased against the stored one).",
     )
     suite_sub = s.add_subparsers(dest="suite_command", required=True, metavar="ACTION")
     for action, text in (

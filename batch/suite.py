@@ -373,12 +373,15 @@ def status_of(case: Case, verdict: wc.Verdict) -> str:
 
 
 def exit_code(outcomes: list[Outcome]) -> int:
-    """1 when a case failed (an unexpected `biased`, or an expected difference not found), else 2 when a case
-    could not run, else 3 when one was inconclusive, else 0 (skipped cases do not count)."""
-    statuses = {o.status for o in outcomes}
-    for status, code in (("failed", 1), ("error", 2), ("inconclusive", 3)):
-        if status in statuses:
-            return code
+    """1 when a case is `biased` where it should not be (1 means biased and nothing else), else 2 when a case could
+    not run, else 3 when a case is inconclusive or an expected difference was not found (the suite can't confirm
+    every case), else 0 (skipped cases do not count)."""
+    if any(o.status == "failed" and o.verdict == wc.Verdict.BIASED for o in outcomes):
+        return 1
+    if any(o.status == "error" for o in outcomes):
+        return 2
+    if any(o.status in ("inconclusive", "failed") for o in outcomes):
+        return 3
     return 0
 
 

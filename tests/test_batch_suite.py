@@ -108,9 +108,12 @@ def test_statuses_and_exit_codes():
     assert suites.status_of(different, Verdict.NO_EVIDENCE) == "failed"  # a known difference that went away
     assert suites.status_of(same, Verdict.INCONCLUSIVE) == "inconclusive"
     assert suites.exit_code([outcome("passed"), outcome("skipped")]) == 0
-    assert suites.exit_code([outcome("inconclusive"), outcome("error"), outcome("failed")]) == 1
+    biased = outcome("failed", verdict="biased")
+    assert suites.exit_code([outcome("inconclusive"), outcome("error"), biased]) == 1
     assert suites.exit_code([outcome("inconclusive"), outcome("error")]) == 2
     assert suites.exit_code([outcome("inconclusive"), outcome("passed")]) == 3
+    # An expected difference that went away: not `biased` (exit 1 means biased), but the suite can't pass.
+    assert suites.exit_code([outcome("failed", expect="biased", verdict="no_evidence")]) == 3
 
 
 def test_junit_xml_counts_each_kind():
