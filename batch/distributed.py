@@ -45,7 +45,7 @@ from ._siblings import welch_core as wc
 from .errors import BatchError
 from .job import RenderJob
 from .launch import THREADS_ENV, ChunkRequest, JobProcess, job_command
-from .lock import OutputLock
+from .lock import OutputLock, process_alive
 from .progress import Progress
 from .seeds import format_seeds
 
@@ -289,19 +289,9 @@ def _work_folder() -> str:
             base = SHM
     for entry in os.scandir(base):
         pid = entry.name.removeprefix(WORK_PREFIX).split("-", 1)[0]
-        if entry.name.startswith(WORK_PREFIX) and pid.isdigit() and not _alive(int(pid)):
+        if entry.name.startswith(WORK_PREFIX) and pid.isdigit() and not process_alive(int(pid)):
             shutil.rmtree(entry.path, ignore_errors=True)
     return tempfile.mkdtemp(prefix=f"{WORK_PREFIX}{os.getpid()}-", dir=base)
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True  # someone else's process
-    return True
 
 
 def _remove(path: str) -> None:

@@ -54,3 +54,14 @@ class OutputLock:
             self.lock_path.unlink(missing_ok=True)  # while still locked: a waiter then re-checks the inode
             os.close(self._fd)
             self._fd = None
+
+
+def process_alive(pid: int) -> bool:
+    """Whether process `pid` exists (files named after a dead process's PID are leftovers to clean up)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True  # someone else's process
+    return True

@@ -22,6 +22,7 @@ from ._siblings import welch_core as wc
 from .errors import BatchError
 from .job import DEFAULT_SAMPLING_PATTERNS, GPU_BACKENDS, NO_GPU_MESSAGE
 from .lobes import COMPONENTS, LIGHTGROUP_PREFIX, PASS_PROPERTIES, layers_from_channels
+from .lock import process_alive
 from .rna import jsonable, render_size
 from .scenes import BUILDER_VERSION, SCENES, build_scene
 
@@ -353,20 +354,10 @@ def remove_stale_passes(folder: str) -> list[str]:
     removed = []
     for path in Path(folder).glob(f"{PASS_PREFIX}*.exr"):
         pid = path.name.removeprefix(PASS_PREFIX).split("-", 1)[0]
-        if pid.isdigit() and int(pid) != os.getpid() and not _alive(int(pid)):
+        if pid.isdigit() and int(pid) != os.getpid() and not process_alive(int(pid)):
             path.unlink(missing_ok=True)
             removed.append(str(path))
     return removed
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True  # someone else's process
-    return True
 
 
 class PassRenderer:
