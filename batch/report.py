@@ -80,7 +80,7 @@ def _full_maps(out: Path, result: wc.Comparison, run: wc.TileStats) -> dict:
 def render_html(
     report: dict, result: wc.Comparison, ref: wc.TileStats, test: wc.TileStats, previews=None, layers=None
 ) -> str:
-    data = {"summary": report, **_tile_data(result), **_pictures(result, ref, test, previews)}
+    data = {"summary": report, **_tile_data(result, report["grid"]), **_pictures(result, ref, test, previews)}
     text = json.dumps(data, allow_nan=False, separators=(",", ":")).replace("</", "<\\/")
     colour = {"biased": "#b00020", "inconclusive": "#a06000"}.get(report["verdict"], "#1b7f3b")
     replacements = {
@@ -174,18 +174,14 @@ def _b64(array: np.ndarray, dtype: str) -> str:
     return base64.b64encode(np.ascontiguousarray(array, dtype=dtype).tobytes()).decode("ascii")
 
 
-def _tile_data(c: wc.Comparison) -> dict:
-    """The per-tile arrays of the finest scale, row-major, for the page's script."""
+def _tile_data(c: wc.Comparison, grid: dict) -> dict:
+    """The per-tile arrays of the finest scale, row-major, for the page's script (`grid`: the summary's)."""
     sizes, region_p = c.region_scales()
     effect = c.effect
     valid = c.reasons == wc.Reason.VALID
     return {
         "grid": {
-            "width": c.width,
-            "height": c.height,
-            "tile": c.tile,
-            "tiles_x": int(c.tile_pvalues.shape[1]),
-            "tiles_y": int(c.tile_pvalues.shape[0]),
+            **grid,
             "channels": int(c.pvalues.shape[-1]),
             "reasons": [r.label for r in wc.Reason],
         },

@@ -164,12 +164,7 @@ def obrien_fleming_spending(t: npt.ArrayLike, alpha: npt.ArrayLike) -> np.ndarra
     WelchInputError
         If a `t` is negative or NaN, or an `alpha` is outside (0, 1).
     """
-    t = _as_float_array("t", t)
-    alpha = _as_float_array("alpha", alpha)
-    if not np.all(t >= 0.0):
-        raise WelchInputError(f"`t` must be >= 0, got {_show(t)}")
-    _check_alphas("alpha", alpha)
-    t, alpha = np.broadcast_arrays(t, alpha)
+    t, alpha = _spending_args(t, alpha)
     z = -special.ndtri(alpha / 2.0)
     with np.errstate(divide="ignore"):  # t = 0: z / 0 = inf, ndtr(-inf) = 0 as wanted
         spent = 2.0 * special.ndtr(-z / np.sqrt(np.minimum(t, 1.0)))
@@ -185,13 +180,18 @@ def pocock_spending(t: npt.ArrayLike, alpha: npt.ArrayLike) -> np.ndarray:
     large bias stops the run early at little cost in z (the price is a somewhat higher last boundary than
     O'Brien-Fleming's). Arguments and errors as `obrien_fleming_spending`.
     """
+    t, alpha = _spending_args(t, alpha)
+    return np.where(t >= 1.0, alpha, alpha * np.log1p((math.e - 1.0) * np.minimum(t, 1.0)))
+
+
+def _spending_args(t, alpha) -> tuple[np.ndarray, np.ndarray]:
+    """A spending function's information fractions and alphas, checked and broadcast against each other."""
     t = _as_float_array("t", t)
     alpha = _as_float_array("alpha", alpha)
     if not np.all(t >= 0.0):
         raise WelchInputError(f"`t` must be >= 0, got {_show(t)}")
     _check_alphas("alpha", alpha)
-    t, alpha = np.broadcast_arrays(t, alpha)
-    return np.where(t >= 1.0, alpha, alpha * np.log1p((math.e - 1.0) * np.minimum(t, 1.0)))
+    return np.broadcast_arrays(t, alpha)
 
 
 #: Spending functions by name: (the function, log of it for fractions (rows) and alphas (columns)).
