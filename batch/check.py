@@ -389,7 +389,7 @@ def run_check(job: CheckJob, progress, undecided: wc.Verdict = wc.Verdict.INCONC
         result, ref, test, wc.load_layers(job.reference.out, pixels=False), wc.load_layers(job.test.out, pixels=False)
     )
     if layers is not None:
-        summary["layers"] = layers[0]
+        summary["layers"] = dict(layers[0], after_looks=True)
     write_report(job.out, summary, result, ref, test, layers=layers[1] if layers else None)
     return verdict, summary
 

@@ -138,6 +138,9 @@ def layers_section(summary: dict | None, comparisons: dict[str, wc.Comparison]) 
             f"<td>{difference}</td><td>{picture}</td></tr>"
         )
     notes = []
+    if summary.get("after_looks"):
+        notes.append("each layer is tested once on the final passes: it says where the difference is; the verdict "
+                     "is the image's, decided under the stopping rule")  # fmt: skip
     if summary["explanation"]:
         notes.append(summary["explanation"])
     for side, check in summary["component_sum"].items():

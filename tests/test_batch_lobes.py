@@ -228,3 +228,18 @@ def test_the_components_add_up_to_the_image_in_every_builtin_scene():
                 error = lobes.component_sum_error(sums["combined"], [sums[c] for c in lobes.COMPONENTS])
                 worst[name] = max(worst.get(name, 0.0), error)
     assert max(worst.values()) <= lobes.COMPONENT_SUM_TOLERANCE, worst
+
+
+@pytest.mark.slow
+def test_check_with_lobes_tests_each_layer_of_the_final_passes(tmp_path):
+    done = subprocess.run(
+        [sys.executable, "-m", "batch", "check", "--scene", "corner", "--set", f"{WALLS}=0.21,0.21,0.21,1",
+         "--lobes", "diffuse,glossy", "--resolution", "32", "32", "--tile", "8", "--max-passes", "16",
+         "--sampling-pattern", "TABULATED_SOBOL", "--out", str(tmp_path)],
+        capture_output=True, text=True,
+    )  # fmt: skip
+    assert done.returncode == cli.EXIT_BIASED, done.stderr[-2000:]
+    assert "layer diffuse: biased" in done.stdout and "layer glossy: no light in either run" in done.stdout
+    layers = json.loads((tmp_path / "report.json").read_text())["layers"]
+    assert layers["after_looks"] and layers["explained_by"] == ["diffuse"]
+    assert "tested once on the final passes" in (tmp_path / "report.html").read_text()
