@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import base64
 import html
+import os
 from pathlib import Path
 
 import numpy as np
@@ -52,8 +53,8 @@ def write_dashboard(path: Path, summary: dict, outcomes, refs: Path) -> None:
 <meta name="viewport" content="width=device-width, initial-scale=1"><style>{_STYLE}</style></head>
 <body><header><h1 id="title">Suite {html.escape(summary["suite"])}: {verdict[summary["exit_code"]]}</h1>
 <div class="counts" id="counts">{counts}</div>
-<div class="muted">alpha {summary["alpha"]:g} per case · references {html.escape(summary["refs"])} ·
-{html.escape(summary["file"])}</div></header>
+<div class="muted">alpha {summary["alpha"]:g} per case · references {html.escape(_near(summary["refs"], path))} ·
+{html.escape(_near(summary["file"], path))}</div></header>
 <main><table id="cases"><thead><tr><th>case</th><th>device</th><th>status</th><th>reference</th><th>test</th>
 <th>p-value map</th><th>verdict</th><th>largest difference</th><th class="num">passes</th>
 <th class="num">seconds</th><th>report</th></tr></thead><tbody>{rows}</tbody></table>
@@ -61,6 +62,14 @@ def write_dashboard(path: Path, summary: dict, outcomes, refs: Path) -> None:
 tile-channel could be tested. Thumbnails share the reference's exposure.</p></main></body></html>
 """
     wc.formats.atomic_write(path, lambda f: f.write(page.encode("utf-8")))
+
+
+def _near(target: str, page: Path) -> str:
+    """`target` relative to the page's folder (the dashboard may be moved with its run folder)."""
+    try:
+        return os.path.relpath(target, page.parent)
+    except ValueError:  # another drive
+        return target
 
 
 def _row(outcome, record: dict, refs: Path) -> str:
