@@ -92,20 +92,7 @@ def build_parser() -> argparse.ArgumentParser:
         "scene stays loaded, the statistics are saved after each chunk; or a JSON line "
         '{"seeds": [...], "out": FILE} renders exactly those seeds into FILE',
     )
-    where = r.add_mutually_exclusive_group()
-    where.add_argument(
-        "--workers",
-        type=jobs.positive_int,
-        metavar="N",
-        help="render on N worker processes on this machine (a Dask LocalCluster; the cores are split among them); "
-        "pays off for long runs. Needs the `workers` extra",
-    )
-    where.add_argument(
-        "--scheduler",
-        metavar="ADDRESS",
-        help="render on a running Dask cluster, e.g. tcp://head:8786; every worker needs this tool, its Blender and "
-        "the scene (and its textures) at the same path. Needs the `workers` extra",
-    )
+    add_cluster_arguments(r)
     r.add_argument(
         "--chunk",
         type=jobs.positive_int,
@@ -323,16 +310,20 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def add_cluster_arguments(parser) -> None:
-    """--workers / --scheduler of commands that decide as they render (check, suite run)."""
+    """--workers / --scheduler: the passes on a Dask cluster (render, check, suite run)."""
     where = parser.add_mutually_exclusive_group()
     where.add_argument(
         "--workers",
         type=jobs.positive_int,
         metavar="N",
-        help="render the passes on N worker processes on this machine (a Dask LocalCluster shared by both sides)",
+        help="render the passes on N worker processes on this machine (a Dask LocalCluster, the cores split among "
+        "them; one for all sides and cases); pays off for long runs. Needs the `workers` extra",
     )
     where.add_argument(
-        "--scheduler", metavar="ADDRESS", help="render the passes on a running Dask cluster, e.g. tcp://head:8786"
+        "--scheduler",
+        metavar="ADDRESS",
+        help="render the passes on a running Dask cluster, e.g. tcp://head:8786; every worker needs this tool, its "
+        "Blender and the scene (and its textures) at the same path. Needs the `workers` extra",
     )
 
 

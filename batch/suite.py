@@ -273,9 +273,7 @@ def bless(suite: Suite, cases: list[Case], refs: Path, progress_factory, force: 
     """Render the reference of each case into `refs`. A case that has one already gets a new render on new
     seeds, compared with the stored one: where they differ significantly the old one stays (unless `force`), and
     the comparison's report is kept next to it: a silent re-bless is how thresholds creep."""
-    from . import summary as summaries
     from .launch import run_job
-    from .report import write_report
 
     refs.mkdir(parents=True, exist_ok=True)
     done = []
@@ -294,32 +292,34 @@ def bless(suite: Suite, cases: list[Case], refs: Path, progress_factory, force: 
         new = wc.load_stats(fresh)
         status, message, report = "blessed", f"{new.n} passes in {seconds:.1f} s", None
         if old is not None:
-            try:
-                result = wc.compare(old, new, suite.alpha, "welch")
-            except wc.WelchInputError as exc:  # another size or tile: the case changed, nothing to compare
-                if not force:
-                    fresh.unlink()
-                    done.append(Blessed(case.name, "refused", f"the stored reference can't be compared: {exc}"))
-                    continue
-                os.replace(fresh, target)
-                _write_provenance(refs, case, new, job, seconds, "forced")
-                done.append(Blessed(case.name, "forced", f"{new.n} passes; replaced a reference of another grid"))
-                continue
-            report = str(refs / f"{case.name}.rebless")
-            summary = summaries.summarize(result, old, new, "stored reference", "new render")
-            write_report(report, summary, result, old, new)
-            line = summaries.verdict_line(summary)
-            if result.verdict == wc.Verdict.BIASED and not force:
+            differs, found, report = _against_stored(suite, refs / f"{case.name}.rebless", old, new)
+            if differs and not force:
                 fresh.unlink()
-                refusal = f"the new render differs from the stored one: {line}"
-                done.append(Blessed(case.name, "refused", refusal, report))
+                done.append(Blessed(case.name, "refused", found, report))
                 continue
-            status = "forced" if result.verdict == wc.Verdict.BIASED else "re-blessed"
-            message = f"{message}; against the stored one: {line}"
+            status = "forced" if differs else "re-blessed"
+            message = f"{message}; {found}"
         os.replace(fresh, target)
         _write_provenance(refs, case, new, job, seconds, status)
         done.append(Blessed(case.name, status, message, report))
     return done
+
+
+def _against_stored(suite: Suite, report: Path, old: wc.TileStats, new: wc.TileStats):
+    """(whether the new reference contradicts the stored one, what was found, the comparison's report or None)."""
+    from . import summary as summaries
+    from .report import write_report
+
+    try:
+        result = wc.compare(old, new, suite.alpha, "welch")
+    except wc.WelchInputError as exc:  # another size or tile: the case changed, nothing to compare
+        return True, f"the stored reference can't be compared: {exc}", None
+    summary = summaries.summarize(result, old, new, "stored reference", "new render")
+    write_report(report, summary, result, old, new)
+    line = summaries.verdict_line(summary)
+    if result.verdict == wc.Verdict.BIASED:
+        return True, f"the new render differs from the stored one: {line}", str(report)
+    return False, f"against the stored one: {line}", str(report)
 
 
 def _write_provenance(refs: Path, case: Case, stats: wc.TileStats, job: RenderJob, seconds: float, status: str):
