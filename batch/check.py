@@ -46,6 +46,7 @@ class CheckJob:
     max_seconds: float | None = None
     alpha: float = 0.01
     tolerance: float | None = 0.01
+    equivalence_tile: int | None = None  # claim `equivalent` at this tile size (default: the finest)
     resume: bool = False
     #: The reference is a finished statistics file (a suite's blessed reference), not rendered: only the test
     #: side renders, and the looks' information fractions count its passes against the reference's fixed ones.
@@ -56,7 +57,9 @@ class CheckJob:
     threads: int | None = None  # Cycles threads of each render process on the cluster (None: its default)
 
     def plan(self, max_passes: int) -> wc.SequentialPlan:
-        return wc.SequentialPlan(max_passes=max_passes, alpha=self.alpha, tolerance=self.tolerance)
+        return wc.SequentialPlan(
+            max_passes=max_passes, alpha=self.alpha, tolerance=self.tolerance, equivalence_tile=self.equivalence_tile
+        )
 
     @property
     def paired(self) -> bool:
@@ -314,11 +317,17 @@ class Check:
 
     def _loop(self):
         done = max([look["passes"] for look in self.looks] + [min(s.passes for s in self._rendered())])
+        fractions = [look["fraction"] for look in self.looks]
+        if self.looks and self.looks[-1]["verdict"] is not None:
+            # Decided already (a resumed check): answer with that decision; another look would be one more peek.
+            ref, test = self._load()
+            n = self.looks[-1]["passes"]
+            ref, test = (ref if self.job.fixed_reference else self._at(ref, n)), self._at(test, n)
+            return wc.sequential_look(ref, test, self.plan, fractions, final=True), ref, test
         if self.plan is None:
             self._render_to(wc.looks.FIRST_LOOK)
             self._fix_budget()
         schedule = [n for n in wc.look_schedule(self.plan.max_passes) if n > done]
-        fractions = [look["fraction"] for look in self.looks]
         deadline = None if self.job.max_seconds is None else self.job.max_seconds
         look = None
         for index, n in enumerate(schedule):
@@ -348,15 +357,32 @@ class Check:
             if look.verdict is not None:
                 return look, ref, test
         ref, test = self._load()
-        if look is None:  # resumed after the last look: decide again on what is there
-            look = wc.sequential_look(ref, test, self.plan, fractions or [1.0])
-        return look, ref, test
+        if not fractions:  # nothing looked at (resumed after the last look): the first look on what is there
+            fractions = [self._fraction(min(ref.n, test.n))]
+        # The budget is spent (or the time): the last look, as the final one.
+        return wc.sequential_look(ref, test, self.plan, fractions, final=True), ref, test
+
+    @staticmethod
+    def _at(run: wc.TileStats, n: int) -> wc.TileStats:
+        """The run as it was at a look of `n` passes (a side may hold more: rendered after the look)."""
+        return run if run.n <= n else run.subset(range(n))
 
 
 def _look_record(look: wc.Look, seconds: float) -> dict:
-    record = dataclasses.asdict(look)
-    record["verdict"] = look.verdict.label if look.verdict is not None else None
-    record["seconds"] = seconds
+    outcome = look.outcome
+    record = {
+        "passes": look.passes,
+        "fraction": look.fraction,
+        "verdict": look.verdict.label if look.verdict is not None else None,
+        "p_value": look.p_value,
+        "threshold": look.threshold,
+        "crossed": look.crossed,
+        "ruled_out": look.ruled_out,
+        "ruled_out_tile": look.ruled_out_tile,
+        "whole_image": outcome.whole_image.to_json() if outcome.whole_image is not None else None,
+        "uncovered": look.uncovered,
+        "seconds": seconds,
+    }
     return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in record.items()}
 
 
@@ -364,34 +390,20 @@ def _json_default(value):
     raise TypeError(f"not JSON: {type(value).__name__}")
 
 
-def final_verdict(look: wc.Look, undecided: wc.Verdict = wc.Verdict.INCONCLUSIVE) -> wc.Verdict:
-    """The check's verdict: the look's, or `undecided` when the budget ran out first (a suite case without a
-    tolerance has nothing to stop at but `biased`: `no_evidence` is its verdict at the budget)."""
-    return look.verdict if look.verdict is not None else undecided
-
-
-def run_check(job: CheckJob, progress, undecided: wc.Verdict = wc.Verdict.INCONCLUSIVE) -> tuple[wc.Verdict, dict]:
-    """Run `job` and write its report into ``job.out``: the verdict and the report's summary."""
-    from . import summary as summaries
-    from .report import write_report
+def run_check(job: CheckJob, progress) -> tuple[wc.Verdict, dict]:
+    """Run `job` and write its report into ``job.out``: the verdict and the report's content. The verdict and its
+    numbers are the last look's; the map and the tiles are the final passes' statistics (descriptive)."""
+    from .pipeline import present
+    from .summary import check_record
 
     Path(job.out).mkdir(parents=True, exist_ok=True)
     check = Check(job, progress)
     look, ref, test = check.run()
-    result = wc.compare(ref, test, job.alpha, tolerance=job.tolerance)
-    verdict = final_verdict(look, undecided)
-    if verdict == wc.Verdict.NO_EVIDENCE and result.verdict == wc.Verdict.INCONCLUSIVE:
-        verdict = wc.Verdict.INCONCLUSIVE  # too much of the image untestable to say "no evidence"
-    summary = summaries.check_summary(result, ref, test, look, verdict, job, check.looks, check.plan.max_passes)
-    # Each layer (--lobes) tested on the final data: a fixed-sample test after the looks, to say where the
-    # difference is, not to decide.
-    layers = summaries.layers_summary(
-        result, ref, test, wc.load_layers(job.reference.out, pixels=False), wc.load_layers(job.test.out, pixels=False)
-    )
-    if layers is not None:
-        summary["layers"] = dict(layers[0], after_looks=True)
-    write_report(job.out, summary, result, ref, test, layers=layers[1] if layers else None)
-    return verdict, summary
+    comparison = wc.compare(ref, test, job.alpha, tolerance=job.tolerance)
+    layers = (wc.load_layers(job.reference.out, pixels=False), wc.load_layers(job.test.out, pixels=False))
+    record = check_record(job, check.looks, check.plan.max_passes, look)
+    report = present(job.out, comparison, ref, test, outcome=look.outcome, check=record, layers=layers)
+    return look.outcome.verdict, report
 
 
 #: Seeds a side may use under a time budget (the pass budget is fixed once the speed is known).
@@ -466,5 +478,6 @@ def check_job_from_args(args) -> CheckJob:
         max_seconds=args.max_seconds,
         alpha=args.alpha,
         tolerance=args.tolerance,
+        equivalence_tile=args.equivalence_tile,
         resume=args.resume,
     )

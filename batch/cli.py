@@ -131,8 +131,16 @@ def build_parser() -> argparse.ArgumentParser:
         type=tolerance_or_off,
         default=0.01,
         metavar="PERCENT",
-        help="stop at `equivalent` once every tile is bounded within this relative difference (default 1%%; "
-        "`off`: stop only at `biased`, so that a bias smaller than any tolerance is found given the passes)",
+        help="stop at `equivalent` once every tile of the finest tile size is bounded within this relative "
+        "difference (default 1%%; `off`: stop only at `biased`, so that a bias smaller than any tolerance is found "
+        "given the passes)",
+    )
+    k.add_argument(
+        "--equivalence-tile",
+        type=jobs.positive_int,
+        metavar="N",
+        help="claim `equivalent` for N x N tiles (a multiple of --tile) instead of the finest: a weaker claim, "
+        "stated with its tile size everywhere the verdict is shown",
     )
     k.add_argument(
         "--alpha", type=_alpha, default=DEFAULT_ALPHA, help="false-positive rate of either verdict (default 0.01)"
@@ -213,7 +221,14 @@ def build_parser() -> argparse.ArgumentParser:
             "--tolerance",
             type=tolerance_arg,
             metavar="PERCENT",
-            help="e.g. 0.5%%: the verdict is `equivalent` when every tile's difference is bounded within it",
+            help="e.g. 0.5%%: the verdict is `equivalent` when every tile of the finest tile size is bounded within "
+            "it (else `inconclusive`, saying what is bounded and what is not)",
+        )
+        c.add_argument(
+            "--equivalence-tile",
+            type=jobs.positive_int,
+            metavar="N",
+            help="with --tolerance: claim `equivalent` for N x N tiles (one of the tested sizes) instead of the finest",
         )
         c.add_argument(
             "--tile",
@@ -449,52 +464,49 @@ def _content_seed(path: str) -> int:
 
 
 def cmd_check(args) -> int:
-    from . import summary as summaries
     from .check import check_job_from_args, run_check
+    from .pipeline import lines
     from .progress import Progress
 
     job = check_job_from_args(args)
-    verdict, summary = run_check(job, Progress(0, args.json_progress, label="check"))
-    print(summaries.verdict_line(summary))
-    for line in summaries.console_lines(summary):
-        print(f"  {line}")
-    print(f"report: {os.path.join(job.out, 'report.html')}")
+    verdict, report = run_check(job, Progress(0, args.json_progress, label="check"))
+    print("\n".join(lines(report, job.out)))
     return verdict.exit_code
 
 
 def cmd_compare(args) -> int:
-    # The pixel sums only where full-resolution maps are asked for; the page needs the stored previews alone.
-    ref, test = (wc.load_stats(path, pixels=args.full_maps) for path in (args.ref, args.test))
-    previews = None if args.full_maps else (wc.load_preview(args.ref), wc.load_preview(args.test))
-    result = wc.compare(ref, test, args.alpha, args.kind, args.pvalue_method, args.tile, args.tolerance)
-    layers = (wc.load_layers(args.ref, pixels=False), wc.load_layers(args.test, pixels=False))
-    return _write_and_print(args, ref, test, result, args.ref, args.test, previews, layers)
+    from .pipeline import compare_files, lines
+
+    report = compare_files(
+        args.ref,
+        args.test,
+        args.out,
+        alpha=args.alpha,
+        kind=args.kind,
+        pvalue_method=args.pvalue_method,
+        tile=args.tile,
+        tolerance=args.tolerance,
+        equivalence_tile=args.equivalence_tile,
+        full_maps=args.full_maps,
+    )
+    print("\n".join(lines(report, args.out)))
+    return wc.Verdict(report["verdict"]).exit_code
 
 
 def cmd_selftest(args) -> int:
+    from .pipeline import lines, present
+
     run = wc.load_stats(args.run)
     if run.n < 4:
         raise BatchError(f"selftest needs at least 4 passes to split into halves, {args.run} has {run.n}")
     first, second = wc.split_halves(run)
-    result = wc.compare(first, second, args.alpha, "welch", args.pvalue_method, args.tile, args.tolerance)
+    result = wc.compare(
+        first, second, args.alpha, "welch", args.pvalue_method, args.tile, args.tolerance, args.equivalence_tile
+    )
     name = os.path.basename(args.run)
-    return _write_and_print(args, first, second, result, f"{name} (even passes)", f"{name} (odd passes)")
-
-
-def _write_and_print(args, ref, test, result, ref_name: str, test_name: str, previews=None, layers=None) -> int:
-    from . import summary as summaries
-    from .report import write_report
-
-    summary = summaries.summarize(result, ref, test, ref_name, test_name)
-    tested = summaries.layers_summary(result, ref, test, *layers) if layers else None
-    if tested is not None:
-        summary["layers"] = tested[0]
-    layer_results = tested[1] if tested else None
-    write_report(args.out, summary, result, ref, test, args.full_maps, previews, layer_results)
-    print(summaries.verdict_line(summary))
-    for line in summaries.console_lines(summary):
-        print(f"  {line}")
-    print(f"report: {os.path.join(args.out, 'report.html')}")
+    names = (f"{name} (even passes)", f"{name} (odd passes)")
+    report = present(args.out, result, first, second, names=names, full_maps=args.full_maps)
+    print("\n".join(lines(report, args.out)))
     return result.verdict.exit_code
 
 

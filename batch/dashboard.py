@@ -41,7 +41,7 @@ img{width:96px;height:96px;object-fit:contain;image-rendering:pixelated;backgrou
 
 
 def write_dashboard(path: Path, summary: dict, outcomes, refs: Path) -> None:
-    """Write the dashboard of `outcomes` (``batch.suite.Outcome``) with `summary` (``summary.json``'s content)."""
+    """Write the dashboard of `outcomes` (``batch.suite.CaseResult``) with `summary` (``summary.json``'s content)."""
     rows = "".join(_row(o, record, refs) for o, record in zip(outcomes, summary["cases"], strict=True))
     counts = "".join(
         f'<span style="color:{_STATUS_COLOURS[k]}">{v} {k}</span>' for k, v in summary["counts"].items() if v
@@ -56,7 +56,7 @@ def write_dashboard(path: Path, summary: dict, outcomes, refs: Path) -> None:
 <div class="muted">alpha {summary["alpha"]:g} per case · references {html.escape(_near(summary["refs"], path))} ·
 {html.escape(_near(summary["file"], path))}</div></header>
 <main><table id="cases"><thead><tr><th>case</th><th>device</th><th>status</th><th>reference</th><th>test</th>
-<th>p-value map</th><th>verdict</th><th>largest difference</th><th class="num">passes</th>
+<th>p-value map</th><th>verdict</th><th>difference</th><th class="num">passes</th>
 <th class="num">seconds</th><th>report</th></tr></thead><tbody>{rows}</tbody></table>
 <p class="muted">p-value map: log scale, yellow for small p (1e-12 and below), violet for p near 1, grey where no
 tile-channel could be tested. Thumbnails share the reference's exposure.</p></main></body></html>
@@ -79,13 +79,7 @@ def _row(outcome, record: dict, refs: Path) -> str:
         f'<td><img alt="{name}" src="{url}"></td>' if url else f'<td class="muted">{"—"}</td>'
         for name, url in zip(("reference", "test", "p-value map"), pictures, strict=True)
     )
-    effect = record["largest_effect"]
-    difference = (
-        f"{fmt.percent(effect['rel_diff'])} [{fmt.percent(effect['ci_low'])}, {fmt.percent(effect['ci_high'])}]"
-        f'<div class="muted">{effect["channel"]} at {effect["x"]}, {effect["y"]} ({effect["size"]} px)</div>'
-        if effect
-        else "—"
-    )
+    difference = _difference_cell(record)
     report = f'<a href="{html.escape(record["report"])}">report</a>' if record["report"] else ""
     why = f'<div class="muted">{html.escape(outcome.case.why)}</div>' if outcome.case.why else ""
     return (
@@ -96,6 +90,21 @@ def _row(outcome, record: dict, refs: Path) -> str:
         f'<td>{difference}</td><td class="num">{outcome.passes or ""}</td>'
         f'<td class="num">{outcome.seconds:.1f}</td><td>{report}</td></tr>'
     )
+
+
+def _difference_cell(record: dict) -> str:
+    """The whole image's difference and the largest tile difference, each with its interval (the largest's
+    simultaneous over every tile: it was chosen for its size), as the verdict's outcome has them."""
+    rows = []
+    whole, largest = record.get("whole_image"), record.get("largest")
+    if whole is not None and whole["estimate"] is not None:
+        rows.append(f"whole image {html.escape(fmt.difference(whole))}")
+    if largest is not None:
+        rows.append(
+            f'<div class="muted">largest tile {html.escape(fmt.difference(largest))} ({largest["channel"]} at '
+            f"{largest['x']}, {largest['y']}, {largest['tile']} px; {largest['confidence']:.0%} simultaneous)</div>"
+        )
+    return "".join(rows) or "—"
 
 
 def _thumbnails(outcome, refs: Path) -> list[str | None]:

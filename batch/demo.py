@@ -11,11 +11,10 @@ import time
 
 from ._siblings import welch_core as wc
 from .job import RenderJob
+from .pipeline import lines, present
 from .progress import Progress
-from .report import write_report
 from .run import render_run
 from .scenes import WALL_COLOR_PATH
-from .summary import summarize, verdict_line
 
 #: About a minute on 2 cores: 128×128 px, 32 passes of 4 spp a side, 32×32 tiles (16 tiles).
 DEMO_PASSES = 32
@@ -45,12 +44,10 @@ def run_demo(out_dir: str, passes: int | None = None, resolution: int | None = N
             os.remove(job.out)
         runs.append(render_run(job, Progress(len(job.seeds), label=label)))
     result = wc.compare(*runs, alpha=0.01)
-    summary = summarize(result, *runs, "corner, walls 0.20", "corner, walls 0.21")
-    write_report(out_dir, summary, result, *runs)
+    report = present(out_dir, result, *runs, names=("corner, walls 0.20", "corner, walls 0.21"))
     print(
         f"demo: corner scene, walls 0.20 vs 0.21, {passes} passes of {DEMO_SPP} spp a side at {size}x{size} px, "
         f"{time.perf_counter() - start:.0f} s"
     )
-    print(verdict_line(summary))
-    print(f"report: {os.path.abspath(os.path.join(out_dir, 'report.html'))}")
+    print("\n".join(lines(report, os.path.abspath(out_dir))))
     return result

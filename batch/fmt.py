@@ -46,3 +46,24 @@ def one_line(text: str, limit: int = ONE_LINE_LENGTH) -> str:
     """Whitespace collapsed to single spaces and cut to `limit` characters."""
     text = " ".join(str(text).split())
     return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
+def magnitude(x: float | None, digits: int = 2) -> str:
+    """An unsigned relative size: '0.82 %'; '—' where it is not known (an unbounded bias)."""
+    if x is None or not math.isfinite(x):
+        return "—"
+    return f"{abs(x) * 100:.{digits}f} %"
+
+
+def interval(low: float | None, high: float | None, digits: int = 2) -> str:
+    """'[-0.35 %, +1.68 %]'; '[—]' where either end is unknown."""
+    if low is None or high is None or not (math.isfinite(low) and math.isfinite(high)):
+        return "[—]"
+    return f"[{percent(low, digits)}, {percent(high, digits)}]"
+
+
+def difference(d, digits: int = 2) -> str:
+    """A `welch_core.Difference` as '+1.02 % [+0.35 %, +1.68 %]' ('—' without an estimate)."""
+    if d is None or d.get("estimate") is None:
+        return "—"
+    return f"{percent(d['estimate'], digits)} {interval(d['low'], d['high'], digits)}"

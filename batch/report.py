@@ -21,6 +21,7 @@ import numpy as np
 
 from . import fmt
 from ._siblings import welch_core as wc
+from .summary import design_line
 
 #: The longest side of the pictures in the page (what statistics files store as their preview); tiles are drawn
 #: at their true place over them.
@@ -41,12 +42,15 @@ def write_report(
     full_maps: bool = False,
     previews: tuple[np.ndarray | None, np.ndarray | None] | None = None,
     layers: dict[str, wc.Comparison] | None = None,
+    significant: np.ndarray | None = None,
 ) -> dict:
     """Write the report of a comparison into `out_dir` (created if missing); return the report dict (the
     summary of `batch.summary.summarize` and the files written). `full_maps` also writes the p-value map and
     the overlay at the image's resolution as PNG. `previews` are both sides' pixel sums shrunk to at most
     `DISPLAY_MAX` a side (`welch_core.load_preview`), for runs loaded without their pixel sums. `layers` are
-    the comparisons of the light components and light groups, whose rows the summary holds (``layers``)."""
+    the comparisons of the light components and light groups, whose rows the summary holds (``layers``).
+    `significant` are the finest tiles the verdict found significant (default: the comparison's own; a check's
+    are its last look's), which the map outlines."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = {"pvalues_exr": "pvalues.exr", "html": "report.html"}
@@ -55,7 +59,8 @@ def write_report(
         files |= _full_maps(out, result, test if test.mean_image is not None else ref)
     report = dict(summary, files=files)
     write_text(out / "report.json", json.dumps(report, indent=2, allow_nan=False))
-    write_text(out / "report.html", render_html(report, result, ref, test, previews, layers))
+    significant = result.significant if significant is None else significant
+    write_text(out / "report.html", render_html(report, result, ref, test, previews, layers, significant))
     return report
 
 
@@ -78,16 +83,23 @@ def _full_maps(out: Path, result: wc.Comparison, run: wc.TileStats) -> dict:
 
 
 def render_html(
-    report: dict, result: wc.Comparison, ref: wc.TileStats, test: wc.TileStats, previews=None, layers=None
-) -> str:
-    data = {"summary": report, **_tile_data(result, report["grid"]), **_pictures(result, ref, test, previews)}
+    report: dict, result: wc.Comparison, ref: wc.TileStats, test: wc.TileStats, previews=None, layers=None,
+    significant=None,
+) -> str:  # fmt: skip
+    significant = result.significant if significant is None else significant
+    data = {
+        "summary": report,
+        **_tile_data(result, report["grid"], significant),
+        **_pictures(result, ref, test, previews),
+    }
     text = json.dumps(data, allow_nan=False, separators=(",", ":")).replace("</", "<\\/")
     colour = {"biased": "#b00020", "inconclusive": "#a06000"}.get(report["verdict"], "#1b7f3b")
     replacements = {
         "{{TITLE}}": html.escape(f"Bias test: {report['verdict_text']}"),
         "{{VERDICT}}": html.escape(report["verdict_text"].capitalize()),
         "{{COLOUR}}": colour,
-        "{{HEADLINE}}": html.escape(_headline(report)),
+        "{{SENTENCE}}": html.escape(report["sentence"]),
+        "{{HEADLINE}}": html.escape(design_line(report)),
         "{{NEXT_STEP}}": html.escape(report.get("next_step", "")),
         "{{HISTOGRAM}}": histogram_svg(result),
         "{{SELFTEST}}": _selftest_line(report),
@@ -97,17 +109,6 @@ def render_html(
     for key, value in replacements.items():
         head = head.replace(key, value)
     return head + text + tail  # the data last: it is most of the page and holds no placeholder
-
-
-def _headline(report: dict) -> str:
-    check = report.get("check")
-    parts = [f"alpha {report['alpha']:g}"]
-    if check is not None:
-        parts.append(f"{len(check['looks'])} looks, {check['passes']} passes a side")
-    else:
-        parts.append(f"global p {fmt.p_is(report['p_value'])}")
-    parts.append(f"{report['test']} test")
-    return ", ".join(parts)
 
 
 def layers_section(summary: dict | None, comparisons: dict[str, wc.Comparison]) -> str:
@@ -125,8 +126,8 @@ def layers_section(summary: dict | None, comparisons: dict[str, wc.Comparison]) 
             picture = f'<img class="layer-map" alt="p-value map of {html.escape(row["name"])}" src="{url}">'
         largest = row["largest"]
         difference = (
-            f"{fmt.percent(largest['rel_diff'])} [{fmt.percent(largest['ci_low'])}, {fmt.percent(largest['ci_high'])}]"
-            f" ({largest['channel']} at {largest['x']}, {largest['y']}, {largest['size']} px tile)"
+            f"{fmt.difference(largest)} ({largest['channel']} at {largest['x']}, {largest['y']}, {largest['tile']} px "
+            f"tile, {largest['confidence']:.0%} simultaneous)"
             if largest
             else "—"
         )
@@ -139,8 +140,11 @@ def layers_section(summary: dict | None, comparisons: dict[str, wc.Comparison]) 
         )
     notes = []
     if summary.get("after_looks"):
-        notes.append("each layer is tested once on the final passes: it says where the difference is; the verdict "
-                     "is the image's, decided under the stopping rule")  # fmt: skip
+        notes.append(f"each layer is tested once on the final passes at alpha {summary['alpha']:.3g} (Bonferroni over "
+                     "the layers): descriptive, it says where the difference is; the verdict is the image's, decided "
+                     "under the stopping rule")  # fmt: skip
+    else:
+        notes.append(f"each layer is tested at alpha {summary['alpha']:.3g} (Bonferroni over the layers)")
     if summary["explanation"]:
         notes.append(summary["explanation"])
     for side, check in summary["component_sum"].items():
@@ -152,7 +156,7 @@ def layers_section(summary: dict | None, comparisons: dict[str, wc.Comparison]) 
         else:
             notes.append(f"{side}: the components add up to the image (within {check['relative_error']:.1g})")
     head = "<tr><th>layer</th><th>share</th><th>verdict</th><th>p</th><th>significant tiles</th>"
-    head += "<th>largest difference (interval)</th><th>map</th></tr>"
+    head += "<th>most significant difference (interval)</th><th>map</th></tr>"
     items = "".join(f"<li>{html.escape(n)}</li>" for n in notes)
     return (
         '<section style="flex:1 1 100%" id="layers"><h2>Light components and light groups</h2>'
@@ -177,7 +181,7 @@ def _b64(array: np.ndarray, dtype: str) -> str:
     return base64.b64encode(np.ascontiguousarray(array, dtype=dtype).tobytes()).decode("ascii")
 
 
-def _tile_data(c: wc.Comparison, grid: dict) -> dict:
+def _tile_data(c: wc.Comparison, grid: dict, significant: np.ndarray) -> dict:
     """The per-tile arrays of the finest scale, row-major, for the page's script (`grid`: the summary's)."""
     sizes, region_p = c.region_scales()
     effect = c.effect
@@ -198,7 +202,7 @@ def _tile_data(c: wc.Comparison, grid: dict) -> dict:
             "high": _b64(np.where(valid, effect.ci_high, np.nan), "<f4"),
             "reason": _b64(c.reasons, "u1"),
             "trusted": _b64(c.trusted, "u1"),
-            "significant": _b64(c.significant, "u1"),
+            "significant": _b64(significant, "u1"),
             "uncovered": _b64(c.uncovered if c.uncovered is not None else np.zeros(c.trusted.shape, bool), "u1"),
             "scale": _b64(sizes, "<f4"),
             "scale_p": _b64(region_p, "<f8"),

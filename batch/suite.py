@@ -307,16 +307,15 @@ def bless(suite: Suite, cases: list[Case], refs: Path, progress_factory, force: 
 
 def _against_stored(suite: Suite, report: Path, old: wc.TileStats, new: wc.TileStats):
     """(whether the new reference contradicts the stored one, what was found, the comparison's report or None)."""
-    from . import summary as summaries
-    from .report import write_report
+    from .pipeline import present
+    from .summary import verdict_line
 
     try:
         result = wc.compare(old, new, suite.alpha, "welch")
     except wc.WelchInputError as exc:  # another size or tile: the case changed, nothing to compare
         return True, f"the stored reference can't be compared: {exc}", None
-    summary = summaries.summarize(result, old, new, "stored reference", "new render")
-    write_report(report, summary, result, old, new)
-    line = summaries.verdict_line(summary)
+    summary = present(report, result, old, new, names=("stored reference", "new render"))
+    line = verdict_line(summary)
     if result.verdict == wc.Verdict.BIASED:
         return True, f"the new render differs from the stored one: {line}", str(report)
     return False, f"against the stored one: {line}", str(report)
@@ -346,7 +345,7 @@ def _write_provenance(refs: Path, case: Case, stats: wc.TileStats, job: RenderJo
 
 
 @dataclass
-class Outcome:
+class CaseResult:
     """One case on one device."""
 
     case: Case
@@ -372,7 +371,7 @@ def status_of(case: Case, verdict: wc.Verdict) -> str:
     return "passed" if found == (case.expect == "biased") else "failed"
 
 
-def exit_code(outcomes: list[Outcome]) -> int:
+def exit_code(outcomes: list[CaseResult]) -> int:
     """1 when a case is `biased` where it should not be (1 means biased and nothing else), else 2 when a case could
     not run, else 3 when a case is inconclusive or an expected difference was not found (the suite can't confirm
     every case), else 0 (skipped cases do not count)."""
@@ -387,7 +386,7 @@ def exit_code(outcomes: list[Outcome]) -> int:
 
 def run_suite(suite: Suite, cases: list[Case], refs: Path, out: Path, progress_factory, blender=None,
               device: str | None = None, overrides: tuple[str, ...] = (), resume: bool = False,
-              say=print, seed_offset: int = 0, cluster=(None, None)) -> list[Outcome]:  # fmt: skip
+              say=print, seed_offset: int = 0, cluster=(None, None)) -> list[CaseResult]:  # fmt: skip
     """Decide every case on every device (its own, or `device` for all) against its reference in `refs`;
     `overrides` go to every case's test side (a planted change). The test side's seeds start `seed_offset`
     after the reference's last one: the same run gives the same answer, another offset draws new passes.
@@ -429,9 +428,7 @@ def _cluster(workers: int | None, scheduler: str | None):
 
 def _run_case(
     suite, case, device, refs, out, progress_factory, blender, overrides, resume, seed_offset, where
-) -> Outcome:
-    from . import summary as summaries
-
+) -> CaseResult:
     folder = out / case.name / device
     reference = wc.load_stats(reference_path(refs, case), pixels=False)
     first = max(reference.seeds) + 1 + seed_offset
@@ -451,17 +448,17 @@ def _run_case(
     )
     start = time.perf_counter()
     try:
-        verdict, summary = run_check(job, progress_factory(count), undecided=wc.Verdict.NO_EVIDENCE)
+        verdict, summary = run_check(job, progress_factory(count))
     except BatchError as exc:
         status = "skipped" if NO_GPU_MESSAGE in str(exc) else "error"
         if status == "skipped":
             shutil.rmtree(folder, ignore_errors=True)
-        return Outcome(case, device, status, message=str(exc), seconds=time.perf_counter() - start)
+        return CaseResult(case, device, status, message=str(exc), seconds=time.perf_counter() - start)
     check = summary["check"]
-    message = summaries.verdict_line(summary).removeprefix("verdict: ")
+    message = summary["sentence"]
     if case.expect == "biased":
         message += " (expected: biased)"
-    return Outcome(case, device, status_of(case, verdict), verdict.label, message,
+    return CaseResult(case, device, status_of(case, verdict), verdict.label, message,
                    seconds=check["looks"][-1]["seconds"] if check["looks"] else 0.0, passes=check["passes"],
                    folder=str(folder), summary=summary)  # fmt: skip
 
@@ -469,7 +466,7 @@ def _run_case(
 # -- outputs ------------------------------------------------------------------------------------------------------
 
 
-def write_outputs(suite: Suite, outcomes: list[Outcome], out: Path, refs: Path) -> dict:
+def write_outputs(suite: Suite, outcomes: list[CaseResult], out: Path, refs: Path) -> dict:
     """``summary.json``, ``junit.xml`` and ``index.html`` (the dashboard) in `out`; returns the summary."""
     from .dashboard import write_dashboard
 
@@ -493,8 +490,9 @@ def write_outputs(suite: Suite, outcomes: list[Outcome], out: Path, refs: Path) 
     return summary
 
 
-def _outcome_record(o: Outcome, out: Path) -> dict:
-    record = {
+def _outcome_record(o: CaseResult, out: Path) -> dict:
+    outcome = o.summary["outcome"] if o.summary else None
+    return {
         "case": o.case.name,
         "device": o.device,
         "status": o.status,
@@ -504,15 +502,13 @@ def _outcome_record(o: Outcome, out: Path) -> dict:
         "passes": o.passes,
         "seconds": round(o.seconds, 3),
         "report": os.path.relpath(Path(o.folder) / "report.html", out) if o.folder else None,
-        "largest_effect": None,
+        "whole_image": outcome["whole_image"] if outcome else None,
+        "largest": outcome["largest"] if outcome else None,
+        "most_significant": outcome["most_significant"] if outcome else None,
     }
-    if o.summary and o.summary.get("top_tiles"):
-        top = max(o.summary["top_tiles"], key=lambda t: abs(t["rel_diff"] or 0.0))
-        record["largest_effect"] = {k: top[k] for k in ("rel_diff", "ci_low", "ci_high", "x", "y", "size", "channel")}
-    return record
 
 
-def junit_xml(suite: Suite, outcomes: list[Outcome]) -> bytes:
+def junit_xml(suite: Suite, outcomes: list[CaseResult]) -> bytes:
     """JUnit XML as CI servers read it: a test case per case and device; `biased` where unexpected is a
     failure, a case that could not run an error, a missing device a skip; inconclusive is a failure too (its
     message says so), since the case did not pass."""

@@ -1,7 +1,8 @@
 """Simulated runs of ``python -m batch check`` on pools: the passes a side come in a random order of the pool's
 seeds, and `welch_core.sequential_look` decides at every look of `welch_core.look_schedule`, as `batch.check.Check`
 does after each chunk (the fraction of a look is its passes over the budget; `biased` or `equivalent` stop the
-run; at the budget it ends `inconclusive`). Nothing renders: a run costs a few milliseconds a look.
+run; at the budget it ends `inconclusive`, or `no_evidence` without a tolerance). Nothing renders: a run costs a
+few milliseconds a look.
 
 Paired runs take the same seeds on both sides (what `check` does on one build), unpaired runs take the reference's
 passes from one half of the seeds and the test's from the other (two builds, or ``--unpaired``). The budget is the
@@ -20,7 +21,7 @@ from .cache import digest, memo_json, welch_digest
 from .trials import ALPHA, BASE_TILE
 
 #: Part of the cache key of simulated runs, with welch_core's source.
-CHECKS_VERSION = 1
+CHECKS_VERSION = 2
 
 #: `check`'s defaults (batch.cli / batch.check): alpha 1 %, tolerance 1 %, finest tile 16 px.
 TOLERANCE = 0.01
@@ -39,7 +40,7 @@ def one_run(ref, test, ref_order, test_order, plan: wc.SequentialPlan, tile: int
         look = wc.sequential_look(ref.stats(ref_order[:n], tile), test.stats(test_order[:n], tile), plan, fractions)
         if look.verdict is not None:
             break
-    verdict = look.verdict.label if look.verdict is not None else "inconclusive"
+    verdict = look.outcome.verdict.label  # the last look is the final one: decided
     ruled_out = look.ruled_out if np.isfinite(look.ruled_out) else None
     return {"passes": n, "verdict": verdict, "ruled_out": ruled_out, "ruled_out_tile": look.ruled_out_tile,
             "uncovered": look.uncovered, "looks": len(fractions)}  # fmt: skip
@@ -90,7 +91,7 @@ def tally(runs: list[dict], seconds_per_pass: float) -> dict:
     `biased` count as never): median, 80th and 90th percentile. Seconds are passes a side times
     `seconds_per_pass` (both sides' median pass seconds added)."""
     total = len(runs)
-    counts = {v: sum(r["verdict"] == v for r in runs) for v in ("biased", "equivalent", "inconclusive")}
+    counts = {v: sum(r["verdict"] == v for r in runs) for v in ("biased", "equivalent", "inconclusive", "no_evidence")}
     decided = [r["passes"] * seconds_per_pass for r in runs]
     to_biased = [r["passes"] * seconds_per_pass if r["verdict"] == "biased" else np.inf for r in runs]
     out = {"runs": total, **counts}

@@ -44,14 +44,15 @@ class Geometry:
 def tile_rects(tiles_y: int, tiles_x: int, tile: int, width: int, height: int):
     """(u0, v0, u1, v1) of every tile, rows first, in normalised image coordinates with v up.
 
-    The tile grid covers the whole tiles from the top-left corner; the edge beyond it (incomplete tiles) is
-    not tested, hence not covered.
+    The tile grid starts at the top-left corner; the tiles at the right and bottom edges are partial where the
+    tile does not divide the image (files of earlier versions have no such tiles: their edge is not covered).
     """
     import numpy as np
 
     rows, cols = np.meshgrid(np.arange(tiles_y), np.arange(tiles_x), indexing="ij")
-    u0, u1 = cols * tile / width, (cols + 1) * tile / width
-    v1, v0 = 1.0 - rows * tile / height, 1.0 - (rows + 1) * tile / height  # row 0 is the top of the image
+    u0, u1 = cols * tile / width, np.minimum((cols + 1) * tile, width) / width
+    v1 = 1.0 - rows * tile / height  # row 0 is the top of the image
+    v0 = 1.0 - np.minimum((rows + 1) * tile, height) / height
     return np.stack([u0, v0, u1, v1], axis=-1).reshape(-1, 4).astype(np.float32)
 
 

@@ -67,10 +67,12 @@ def tile_colors(geometry):
 
 
 def test_tile_rects_put_row_0_at_the_top():
-    rects = overlay.tile_rects(2, 3, 16, 50, 40)  # the edge beyond the whole tiles (2 and 8 px) is not covered
+    rects = overlay.tile_rects(2, 3, 16, 50, 40)  # a file without partial tiles: the edge is not covered
     assert rects.shape == (6, 4) and rects.dtype == np.float32
     np.testing.assert_allclose(rects[0], [0.0, 1.0 - 16 / 40, 16 / 50, 1.0])  # top-left tile
     np.testing.assert_allclose(rects[5], [32 / 50, 1.0 - 32 / 40, 48 / 50, 1.0 - 16 / 40])  # bottom-right
+    partial = overlay.tile_rects(3, 4, 16, 50, 40)  # the partial tiles end at the image's edges
+    np.testing.assert_allclose(partial[-1], [48 / 50, 0.0, 1.0, 1.0 - 32 / 40])
 
 
 def test_geometry_colours_tiles_by_p_value_and_outlines_the_significant_ones():
@@ -108,11 +110,11 @@ def test_geometry_leaves_unused_tiles_clear():
 
 
 def test_geometry_of_one_channel_and_of_an_incomplete_edge():
-    comparison, _, _ = biased_comparison(width=70, height=50)  # 4 x 3 whole tiles
+    comparison, _, _ = biased_comparison(width=70, height=50)  # 4 x 3 whole tiles and partial ones: 5 x 4
     geometry = overlay.tile_geometry(comparison, "CHANNEL", "G", 0.5)
-    assert geometry.positions.shape == (6 * 12, 2) and (geometry.width, geometry.height) == (70, 50)
-    assert geometry.positions[:, 0].max() == pytest.approx(64 / 70)
-    assert geometry.positions[:, 1].min() == pytest.approx(1.0 - 48 / 50)
+    assert geometry.positions.shape == (6 * 20, 2) and (geometry.width, geometry.height) == (70, 50)
+    assert geometry.positions[:, 0].max() == pytest.approx(1.0)  # the partial tiles reach the edges
+    assert geometry.positions[:, 1].min() == pytest.approx(0.0)
     np.testing.assert_allclose(
         tile_colors(geometry)[:, :3], welch_core.pvalue_rgb(comparison, "channel", 1).reshape(-1, 3)
     )

@@ -173,7 +173,8 @@ def test_a_run_compared_with_itself_says_so(tmp_path, capsys):
     capsys.readouterr()
     assert cli.main(["compare", ref, ref, "--out", str(tmp_path / "same")]) == cli.EXIT_USAGE
     assert capsys.readouterr().err == (
-        "error: the two runs hold the same passes (a run compared with itself): compare it with a run rendered with "
+        "error: the two runs hold the same passes and were made the same way (a run compared with itself): compare "
+        "it with a run rendered with "
         "other seeds or settings, or run selftest on it\n"
     )
 

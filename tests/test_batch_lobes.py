@@ -111,7 +111,8 @@ def test_ingest_merge_and_compare_test_every_layer(tmp_path, capsys):
     report = json.loads((tmp_path / "r" / "report.json").read_text())
     rows = {row["name"]: row for row in report["layers"]["layers"]}
     assert rows["glossy"]["verdict"] == "biased" and rows["diffuse"]["verdict"] == "no_evidence"
-    assert 0.1 < rows["glossy"]["largest"]["rel_diff"] < 0.6 and 0.55 < rows["diffuse"]["share"] < 0.8
+    assert 0.1 < rows["glossy"]["largest"]["estimate"] < 0.6 and 0.55 < rows["diffuse"]["share"] < 0.8
+    assert report["layers"]["alpha"] == pytest.approx(0.01 / 2)  # Bonferroni over the two layers
     assert report["layers"]["explained_by"] == ["glossy"]
     assert report["layers"]["component_sum"] == {"reference": None, "test": None}  # not every component
     html = (tmp_path / "r" / "report.html").read_text()

@@ -71,7 +71,7 @@ def test_the_page_carries_every_tile_and_both_pictures(tmp_path):
 
 def test_large_images_are_shown_shrunk_and_full_maps_on_request(tmp_path):
     rng = np.random.default_rng(6)
-    sums = rng.normal(100, 1, (4, 2, 3, 3))
+    sums = rng.normal(100, 1, (4, 3, 4, 3))  # 2100x3100 in 1024-px tiles: partial tiles at the edges
     pixels = np.ones((2100, 3100, 3), np.float32) * 4
     ref = wc.TileStats.from_sums(sums, range(4), 2100, 3100, 1024, pixel_sum=pixels)
     test = wc.TileStats.from_sums(sums + 1, range(4, 8), 2100, 3100, 1024, pixel_sum=pixels)
@@ -86,19 +86,22 @@ def test_large_images_are_shown_shrunk_and_full_maps_on_request(tmp_path):
 def test_a_check_report_lists_its_looks(tmp_path):
     ref, test = runs_with_pictures()
     c = wc.compare(ref, test)
+    plan = wc.SequentialPlan(max_passes=32)
+    look = wc.sequential_look(ref, test, plan, [ref.n / 32])
     looks = [{"passes": 2, "fraction": 0.01, "verdict": None, "p_value": 0.1, "threshold": 1e-6, "crossed": 0,
-              "ruled_out": None, "ruled_out_tile": None, "uncovered": 0, "seconds": 0.1}]  # fmt: skip
-    look = wc.Look(passes=16, fraction=0.05, verdict=wc.Verdict.BIASED, p_value=1e-9, threshold=1e-6, crossed=3,
-                   ruled_out=0.3, ruled_out_tile=32, uncovered=0)  # fmt: skip
+              "ruled_out": None, "ruled_out_tile": 32, "whole_image": None, "uncovered": 0,
+              "seconds": 0.1}]  # fmt: skip
 
     class Job:
         max_seconds, tolerance, paired = None, 0.01, False
 
-    s = summary.check_summary(c, ref, test, look, wc.Verdict.BIASED, Job, looks, 32)
-    report.write_report(tmp_path, s, c, ref, test)
+    check = summary.check_record(Job, looks, 32, look)
+    s = summary.summarize(c, ref, test, outcome=look.outcome, check=check)
+    report.write_report(tmp_path, s, c, ref, test, significant=look.outcome.significant)
     data = page_data(tmp_path / "report.html")
     assert data["summary"]["check"]["looks"] == looks and data["summary"]["p_value"] is None
-    assert "1 looks, 16 passes a side" in (tmp_path / "report.html").read_text()
+    assert data["summary"]["outcome"]["design"] == "sequential"
+    assert "1 looks, " in (tmp_path / "report.html").read_text()
 
 
 def test_compare_imports_no_plotting_library_and_no_scipy_stats(tmp_path):

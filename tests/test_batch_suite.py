@@ -97,7 +97,7 @@ def test_the_builtin_suite_names_real_scenes_and_valid_planted_changes():
 
 def outcome(status, expect="same", verdict=None):
     case = suites.Case(name="c", scene="corner", expect=expect)
-    return suites.Outcome(case, "CPU", status, verdict, "message")
+    return suites.CaseResult(case, "CPU", status, verdict, "message")
 
 
 def test_statuses_and_exit_codes():

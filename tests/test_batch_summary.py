@@ -55,6 +55,7 @@ def test_notes_say_why_tiles_were_left_out():
         "fewer than 8 passes a side: the normality of the Welch samples is unchecked",
         "no tile can be tested: every tile-channel has too few passes, zero variance on both sides or non-finite "
         "values (see the counts per reason)",
+        "18 tile-channels are the same on both sides in every pass: bounded at 0 once 44 passes are",
     ]
 
 
@@ -64,14 +65,16 @@ def test_notes_when_every_tile_is_untrusted_name_non_normal_samples():
     ref = tile_sum_samples(rng, 40, m)
     test = tile_sum_samples(rng, 40, m) + (rng.uniform(size=(40, 2, 2, 1)) < 0.03) * 5000.0
     ref = ref + (rng.uniform(size=(40, 2, 2, 1)) < 0.03) * 5000.0
-    c = compare(make_run(ref, range(40)), make_run(test, range(40, 80)))
+    runs = make_run(ref, range(40)), make_run(test, range(40, 80))
+    c = compare(*runs)
     assert c.n_untrusted == c.n_valid == 4 and c.verdict == "inconclusive"
     assert summary.notes(c) == [
         "all 4 testable 32x32 tiles have clearly non-normal Welch samples (fireflies or caustics)",
-        "4 32x32 tiles can be tested at no tile size (their Welch samples stay non-normal): the verdict covers the "
+        "4 32x32 tiles can be tested at no tile size (their Welch samples stay non-normal): `biased` speaks for the "
         "rest of the image",
-        "too much of the image can't be tested: render more samples per pass or more passes",
     ]
+    assert c.outcome.reason == "too_untested"
+    assert "too much of the image can't be tested" in summary.summarize(c, *runs)["sentence"]
 
 
 def test_method_sentence_names_the_test_and_pvalue_method():
@@ -79,11 +82,14 @@ def test_method_sentence_names_the_test_and_pvalue_method():
     m = scene_means(3, 3)
     ref = make_run(tile_sum_samples(rng, 30, m), range(30))
     test = make_run(tile_sum_samples(rng, 30, m), range(30, 60))
-    sentence = summary.method_sentence(compare(ref, test, pvalue_method="gauss"))
-    assert sentence.startswith("Welch's t-test per tile and channel (p: gauss) at tile sizes 32, 64; ")
-    assert sentence.endswith("the scales by Bonferroni")
-    with_tolerance = summary.method_sentence(compare(ref, test, tolerance=0.01))
-    assert with_tolerance.endswith("(Bonferroni over tile-channels and scales) inside ±1.00 %")
+    sentence = summary.summarize(compare(ref, test, pvalue_method="gauss"), ref, test)["method"]
+    assert sentence.startswith("Welch's t-test per tile and channel (p: gauss) at tile sizes 32, 64, 128; ")
+    assert sentence.endswith("the sizes by Bonferroni")
+    with_tolerance = summary.summarize(compare(ref, test, tolerance=0.01), ref, test)["method"]
+    assert with_tolerance.endswith(
+        "equivalent: every tile-channel of the 32x32 tiles has its 98% interval inside ±1.00 % (an intersection-union "
+        "test at 0.01)"
+    )
 
 
 def test_summary_is_strict_json_for_every_verdict():
@@ -107,31 +113,42 @@ def test_summary_is_strict_json_for_every_verdict():
         assert sum(data["tile_channels"].values()) == 27
         assert data["n_ref"] == data["n_test"] == 12
         assert data["reference_selftest"]["n_ref"] == 6
+        assert data["sentence"].startswith(c.outcome.verdict_text)
         if verdict == "inconclusive":
             assert data["p_value"] is None and data["top_tiles"] == []
-            assert data["median_min_detectable_rel_bias"] is None
+            assert data["outcome"]["min_detectable"] is None
         else:
             assert 0.0 <= data["p_value"] <= 1.0
-            assert data["median_min_detectable_rel_bias"] > 0
+            assert data["outcome"]["min_detectable"] > 0
 
 
-def test_differences():
-    a = RunInfo(spp=4, renderer="cycles", settings={"bounces": 8, "clamp": 0.0}, overrides=("x=1",))
-    b = RunInfo(spp=8, renderer="cycles", settings={"bounces": 4, "denoise": True}, overrides=())
-    assert summary.differences(a, b) == [
-        "spp: 4 -> 8",
-        "bounces: 8 -> 4",
-        "clamp: 0.0 -> None",
-        "denoise: None -> True",
-        "overrides: ['x=1'] -> []",
+def test_differences_as_a_person_writes_them_split_by_what_they_change():
+    a = RunInfo(spp=4, renderer="cycles", settings={"cycles.max_bounces": 12, "clamp": 0.0}, overrides=("x=1",))
+    b = RunInfo(spp=8, renderer="cycles", settings={"cycles.max_bounces": 2, "denoise": True}, overrides=())
+    image, noise = summary.differences(a, b)
+    assert image == [
+        "spp: 4 → 8",
+        "clamp: 0.0 → unset",
+        "max_bounces: 12 → 2",
+        "denoise: unset → on",
+        "overrides of the reference side: x=1",
     ]
-    assert summary.differences(a, a) == []
-    built = RunInfo(renderer="Cycles", renderer_version="3.4.1", build_hash="Unknown")
-    other = RunInfo(renderer="Cycles", renderer_version="5.0.1", build_hash="a3db93c5b259")
-    assert summary.differences(built, other) == [
-        "renderer_version: '3.4.1' -> '5.0.1'",
-        "build_hash: 'Unknown' -> 'a3db93c5b259'",
-    ]
+    assert noise == [] and summary.differences(a, a) == ([], [])
+    built = RunInfo(renderer="Cycles", renderer_version="3.4.1", build_hash="Unknown", sampling_pattern="SOBOL")
+    other = RunInfo(renderer="Cycles", renderer_version="5.0.1", build_hash="a3db93c5b259",
+                    sampling_pattern="TABULATED_SOBOL", settings={"cycles.use_light_tree": True})  # fmt: skip
+    image, noise = summary.differences(built, other)
+    assert image == ["renderer_version: 3.4.1 → 5.0.1", "build_hash: Unknown → a3db93c5b259"]
+    assert noise == ["sampling_pattern: SOBOL → TABULATED_SOBOL", "use_light_tree: unset → on"]
+
+
+def test_sides_are_named_by_what_differs():
+    old = RunInfo(renderer="Cycles", renderer_version="4.5.4", build_hash="abc")
+    new = RunInfo(renderer="Cycles", renderer_version="5.0.1", build_hash="def")
+    assert summary.side_names(old, new, None, None) == ("Cycles 4.5.4 (abc)", "Cycles 5.0.1 (def)")
+    plain, changed = RunInfo(), RunInfo(overrides=("cycles.max_bounces=2",))
+    assert summary.side_names(plain, changed, None, None) == ("the scene as it is", "cycles.max_bounces=2")
+    assert summary.side_names(plain, plain, "a.npz", None) == ("a.npz", "test")
 
 
 def test_a_failed_reference_selftest_is_a_warning():

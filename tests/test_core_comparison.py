@@ -20,6 +20,7 @@ from welch_core import (
     seed_relation,
     welch_from_stats,
 )
+from welch_core.effect import relative_interval
 
 # -- which test ------------------------------------------------------------------------------------------
 
@@ -111,7 +112,7 @@ def test_grid_mismatch():
     msg = "statistics have different grids (width, height, tile, channels): (96, 64, 32, 3) against (96, 64, 16, 3)"
     with pytest.raises(GridMismatchError, match=re.escape(msg)):
         compare(a, b)
-    c = TileStats.from_sums(rng.normal(size=(3, 2, 3, 3)), range(3, 6), 70, 96, 32)  # same tiles, other crop
+    c = TileStats.from_sums(rng.normal(size=(3, 3, 3, 3)), range(3, 6), 70, 96, 32)  # other crop: a partial row
     msg = "statistics have different grids (width, height, tile, channels): (96, 64, 32, 3) against (96, 70, 32, 3)"
     with pytest.raises(GridMismatchError, match=re.escape(msg)):
         compare(a, c)
@@ -315,14 +316,14 @@ def test_memory_stays_bounded_on_fine_grids(paired, monkeypatch):
 
 def test_every_scale_is_tested_and_combined_by_bonferroni():
     rng = np.random.default_rng(60)
-    m = scene_means(4, 8)  # 128x256 px in 32-px tiles: scales 32, 64, 128
+    m = scene_means(4, 8)  # 128x256 px in 32-px tiles: scales 32, 64, 128 and 256 (one partial tile: the image)
     ref = make_run(tile_sum_samples(rng, 16, m), range(16))
     test = make_run(tile_sum_samples(rng, 16, m), range(16, 32))
     c = compare(ref, test)
-    assert [s.tile for s in c.scales] == [32, 64, 128]
-    assert [s.tile_pvalues.shape for s in c.scales] == [(4, 8), (2, 4), (1, 2)]
+    assert [s.tile for s in c.scales] == [32, 64, 128, 256]
+    assert [s.tile_pvalues.shape for s in c.scales] == [(4, 8), (2, 4), (1, 2), (1, 1)]
     assert c.scales[0].scales == () and c.tile == 32 and c.result is c.scales[0].result
-    assert c.p_value == pytest.approx(min(1.0, 3 * min(s.p_value for s in c.scales)))
+    assert c.p_value == pytest.approx(min(1.0, 4 * min(s.p_value for s in c.scales)))
     for scale in c.scales[1:]:  # a coarser scale is the test of the summed passes, not a new rendering
         direct = compare(ref.retile(scale.tile // 32), test.retile(scale.tile // 32), tile=scale.tile)
         assert_allclose(scale.pvalues, direct.pvalues, rtol=1e-12)
@@ -379,20 +380,29 @@ def test_equivalence_bounds_every_tile_within_the_tolerance():
     ref = make_run(tile_sum_samples(rng, 200, m), range(200))
     test = make_run(tile_sum_samples(rng, 200, m), range(200, 400))
     c = compare(ref, test, tolerance=0.025)
-    assert c.verdict == "equivalent" and c.verdict.exit_code == 0
-    eq = c.equivalence
-    assert eq.equivalent and eq.tile == 32 and eq.ruled_out[32] <= 0.025
-    assert compare(ref, test, tolerance=0.015).equivalence.tile == 64  # too tight for 32-px tiles
-    assert eq.ruled_out[32] > eq.ruled_out[128]  # coarser tiles are bounded more tightly
-    assert eq.best == (128, eq.ruled_out[128])
-    # The bound is the simultaneous interval: Bonferroni over 3 scales and the scale's tile-channels.
-    level = 0.01 / (3 * 48)
-    half = stats.t.isf(level / 2, c.result.df) * c.result.standard_error / np.abs(ref.mean)
-    bound = np.nanmax(np.abs(c.effect.rel_diff) + half)
-    assert eq.ruled_out[32] == pytest.approx(bound, rel=1e-9)
+    o = c.outcome
+    assert c.verdict == "equivalent" and c.verdict.exit_code == 0 and o.reason == "bounded"
+    assert o.claim_tile == 32 and o.claim.ruled_out <= 0.025 and o.claim.bounded == 16
+    bounds = {s.tile: s.ruled_out for s in o.scales}
+    assert list(bounds) == [32, 64, 128] and bounds[32] > bounds[64] > bounds[128]  # coarser: tighter
+    # Too tight for the 32-px tiles: inconclusive, unless the claim is made for 64-px tiles on request.
+    tight = compare(ref, test, tolerance=0.015)
+    assert tight.verdict == "inconclusive" and tight.outcome.reason == "unbounded"
+    assert tight.outcome.claim.bounded < 16 and tight.outcome.claim.passes_needed > 200
+    coarse = compare(ref, test, tolerance=0.015, equivalence_tile=64)
+    assert coarse.verdict == "equivalent" and coarse.outcome.claim_tile == 64
+    # The bound is intersection-union: each tile-channel's own (1 - 2 alpha) interval, no correction over tiles;
+    # Fieller's interval of the ratio is a little wider than the difference's t interval over |reference|.
+    low, high = relative_interval(c.scales[0].tested, 0.02)
+    assert bounds[32] == pytest.approx(np.nanmax(np.maximum(-low, high)), rel=1e-12)
+    half = stats.t.isf(0.01, c.result.df) * c.result.standard_error / np.abs(ref.mean)
+    assert 1.0 < bounds[32] / np.nanmax(np.abs(c.effect.rel_diff) + half) < 1.01
     strict = compare(ref, test, tolerance=0.001)
-    assert strict.verdict == "no_evidence" and not strict.equivalence.equivalent
-    assert compare(ref, test).equivalence is None
+    assert strict.verdict == "inconclusive" and strict.outcome.claim.ruled_out == bounds[32]
+    plain = compare(ref, test)
+    assert plain.verdict == "no_evidence" and plain.outcome.claim_tile is None
+    with pytest.raises(WelchInputError, match=re.escape("`equivalence_tile` must be one of the tested tile sizes")):
+        compare(ref, test, tolerance=0.01, equivalence_tile=48)
 
 
 def test_a_significant_difference_inside_the_tolerance_is_equivalent():
@@ -415,15 +425,18 @@ def test_a_local_bias_beyond_the_tolerance_is_not_hidden_by_a_coarser_bound():
     ref = TileStats.from_sums(rng.normal(mean, 3.0, (64, 8, 8, 3)), range(64), 128, 128, 16)
     test = TileStats.from_sums(rng.normal(shifted, 3.0, (64, 8, 8, 3)), range(100, 164), 128, 128, 16)
     c = compare(ref, test, tolerance=0.01)
-    assert c.verdict == "biased" and c.equivalence.tile == 64 and c.equivalence.beyond
-    assert not c.equivalence.equivalent
+    assert c.verdict == "biased" and c.outcome.claim_tile == 16 and c.outcome.claim.bounded < 64
+    # Asked for 64-px tiles, the region's mean is bounded, but the finer tile found biased beyond the tolerance
+    # still rules `equivalent` out.
+    coarse = compare(ref, test, tolerance=0.01, equivalence_tile=64)
+    assert coarse.outcome.claim.ruled_out <= 0.01 and coarse.verdict == "biased"
 
 
 def test_equivalent_is_calibrated_when_the_bias_equals_the_tolerance():
     """The worst case for a false `equivalent`: every tile off by exactly the tolerance. 1000 trials at alpha =
     0.05, tolerance 2 %, with enough passes that the intervals are near the tolerance: `equivalent` must come out
-    in at most alpha of them (99.9 % binomial limit). Measured: 0 of 1000 (the simultaneous intervals make it
-    conservative)."""
+    in at most alpha of them (99.9 % binomial limit). Measured: 0 of 1000 (every tile at the boundary must be
+    bounded at once; the worst case, one tile at the tolerance, is in tests/test_core_decision.py)."""
     rng = np.random.default_rng(66)
     m = scene_means(2, 2)
     trials, equivalent = 1000, 0

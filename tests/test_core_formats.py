@@ -221,7 +221,7 @@ def test_previews_of_large_images_are_stored_and_read_alone(tmp_path):
     from welch_core.formats import PREVIEW_SIDE
 
     rng = np.random.default_rng(5)
-    big = TileStats.from_sums(rng.normal(size=(2, 2, 3, 3)), [1, 2], 600, 1100, 300,
+    big = TileStats.from_sums(rng.normal(size=(2, 2, 4, 3)), [1, 2], 600, 1100, 300,
                               pixel_sum=rng.uniform(size=(600, 1100, 3)).astype(np.float32))  # fmt: skip
     save_stats(tmp_path / "big.npz", big)
     with zipfile.ZipFile(tmp_path / "big.npz") as archive:
@@ -320,11 +320,11 @@ def test_load_never_unpickles(tmp_path):
 @pytest.mark.parametrize(
     ("version", "message"),
     [
-        (np.array(4), "has format version 4; this tool reads versions 1 to 3"),
+        (np.array(5), "has format version 5; this tool reads versions 1 to 4"),
         (np.array(1.7), "has a format version that is not an integer: 1.7"),
         (np.array("abc"), "has a format version that is not an integer: 'abc'"),
         (np.array([1, 1]), "has a format version that is not an integer: [1, 1]"),
-        (None, "has no format version; this tool reads versions 1 to 3"),
+        (None, "has no format version; this tool reads versions 1 to 4"),
     ],
 )
 def test_load_wrong_version(tmp_path, version, message):

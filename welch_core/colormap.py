@@ -116,9 +116,10 @@ def pvalue_rgb(comparison, mode: str = "min", channel: int | None = None) -> np.
 
 
 def upscale_tiles(tiles: npt.ArrayLike, tile: int, height: int, width: int, fill: float = 0.0) -> np.ndarray:
-    """Repeat each tile's value over its tile×tile pixels; the dropped edge (incomplete tiles) gets `fill`."""
+    """Repeat each tile's value over its tile×tile pixels (partial edge tiles over the pixels they have); pixels no
+    tile covers (the dropped edge of a file written before partial tiles) get `fill`."""
     tiles = np.asarray(tiles)
-    big = np.repeat(np.repeat(tiles, tile, axis=0), tile, axis=1)
+    big = np.repeat(np.repeat(tiles, tile, axis=0), tile, axis=1)[:height, :width]
     out = np.full((height, width, *tiles.shape[2:]), fill, dtype=tiles.dtype)
     out[: big.shape[0], : big.shape[1]] = big
     return out

@@ -7,11 +7,8 @@ scales times the smallest scale p-value. Bonferroni holds however strongly the s
 coarse tile is the sum of finer ones), and with log2 of the image size scales it costs little. A small tile finds
 a local bias, a large one a weak bias spread over the image; nobody has to know in advance which it is.
 
-Verdicts: ``biased`` (the global p-value is at most alpha, or a tile differs deterministically); with a
-tolerance, ``equivalent`` when at some scale every tested tile's simultaneous (1 - alpha) confidence interval of
-the relative difference lies inside +-tolerance (two one-sided tests, Bonferroni over the tile-channels and the
-scales); ``inconclusive`` when nothing is testable or too much of the image is testable at no scale (Welch
-samples clearly not normal); else ``no_evidence``.
+The verdict and its numbers are decided in `welch_core.decision` (the same rules serve the looks of a run that
+renders until decided); this module makes the per-tile statistics they rest on.
 """
 
 from __future__ import annotations
@@ -22,8 +19,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .decision import Evidence, Outcome, decide
 from .diagnostics import MIN_PASSES_FOR_NORMALITY, normality
-from .effect import Effect, effect_sizes, relative_interval
+from .effect import Effect, effect_sizes
 from .errors import SeedOverlapError, WelchInputError, check_alpha
 from .multitest import GlobalTest, combine_channels, global_test
 from .tiles import TileStats
@@ -31,23 +29,20 @@ from .ttest import Reason, TTestResult, paired_from_stats, welch_from_stats
 from .verdict import Verdict
 
 __all__ = [
-    "MAX_UNTRUSTED_SHARE",
     "TESTS",
     "Comparison",
-    "Equivalence",
     "TileTest",
+    "assess_scales",
+    "choose_test",
     "compare",
+    "identical_passes_of",
+    "paired_differences",
     "scale_factors",
     "seed_relation",
     "test_tiles",
 ]
 
 TESTS = ("auto", "welch", "paired")
-
-#: Above this share of the image untestable at every scale (the Welch samples of its tiles clearly not normal),
-#: a run without significant tiles is `inconclusive`, not `no_evidence`: the untested part of the image is too
-#: large to speak for the whole.
-MAX_UNTRUSTED_SHARE = 0.25
 
 
 def seed_relation(ref_seeds, test_seeds) -> str:
@@ -82,14 +77,14 @@ def _choose_test(requested: str, relation: str, shared: int) -> str:
 
 @dataclass(frozen=True, kw_only=True)
 class Comparison:
-    """Everything `compare` found, as statistics (the words for people are `batch.summary`'s).
+    """Per-tile statistics of a comparison, at one scale or (the top level `compare` returns) at every scale with
+    the `outcome`: the verdict and its numbers (`welch_core.decision`), which is what people are shown.
 
     Arrays are (tiles_y, tiles_x[, channels]), row 0 at the top of the image.
     """
 
-    verdict: Verdict
     alpha: float
-    p_value: float  # the global p-value (0 for a deterministic difference, NaN when nothing is testable)
+    p_value: float  # this scale's p-value (at the top level the global one; 0 for a deterministic difference)
     test: str  # "welch" or "paired"
     pvalue_method: str
     result: TTestResult
@@ -97,6 +92,7 @@ class Comparison:
     trusted: np.ndarray  # tiles whose Welch samples pass the normality check (or were too few to check)
     normality_checked: bool  # False when a side has fewer than MIN_PASSES_FOR_NORMALITY passes
     global_test: GlobalTest
+    significant: np.ndarray  # tiles found significant by the `biased` test of the whole family (see `compare`)
     ref_mean: np.ndarray  # the reference's tile means, the scale of relative differences
     n_ref: int
     n_test: int
@@ -107,13 +103,18 @@ class Comparison:
     scales: tuple[Comparison, ...] = ()
     #: base tiles that could be tested at no scale (all-constant tiles excluded); None for a single scale
     uncovered: np.ndarray | None = None
-    equivalence: Equivalence | None = None
+    outcome: Outcome | None = None
+    tested: TileTest | None = None  # the tile test this scale's statistics come from
+
+    @property
+    def verdict(self) -> Verdict:
+        return self.outcome.verdict
 
     @functools.cached_property
     def effect(self) -> Effect:
-        """Relative differences with intervals and the minimum detectable bias (computed when first asked for:
-        the t quantiles are most of a comparison's cost)."""
-        return effect_sizes(self.result, self.ref_mean, self.alpha, int(self.used.sum()))
+        """Relative differences with pointwise intervals and the minimum detectable bias, per tile-channel, for
+        the map (computed when first asked for: the t quantiles are most of a comparison's cost)."""
+        return effect_sizes(self.tested, self.alpha, int(self.used.sum()))
 
     @property
     def pvalues(self) -> np.ndarray:
@@ -131,12 +132,6 @@ class Comparison:
     @property
     def qvalues(self) -> np.ndarray:
         return self.global_test.qvalues
-
-    @property
-    def significant(self) -> np.ndarray:
-        """Tiles significant after the family-wise (Holm) correction at alpha."""
-        with np.errstate(invalid="ignore"):
-            return self.global_test.adjusted <= self.alpha
 
     @property
     def n_valid(self) -> int:
@@ -166,38 +161,11 @@ class Comparison:
         pvalues = np.full((ty, tx, self.pvalues.shape[-1]), np.nan)
         for scale in reversed(self.scales or (self,)):  # coarsest first: finer scales overwrite
             f = scale.tile // self.tile
-            rows, cols = np.arange(ty) // f, np.arange(tx) // f
-            inside = (rows[:, None] < scale.used.shape[0]) & (cols[None, :] < scale.used.shape[1])
-            r, c = np.minimum(rows, scale.used.shape[0] - 1), np.minimum(cols, scale.used.shape[1] - 1)
-            used = inside & scale.used[r[:, None], c[None, :]]
+            r, c = np.arange(ty) // f, np.arange(tx) // f
+            used = scale.used[r[:, None], c[None, :]]
             sizes[used] = scale.tile
             pvalues[used] = scale.pvalues[r[:, None], c[None, :]][used]
         return sizes, pvalues
-
-
-@dataclass(frozen=True)
-class Equivalence:
-    """Where the relative difference is bounded: per scale, the largest |bias| its simultaneous intervals rule
-    out in every tested tile (inf where some tile of the scale can't be bounded), and the finest scale at which
-    that bound is within the tolerance (None: at none)."""
-
-    tolerance: float
-    ruled_out: dict[int, float]  # tile size -> the largest relative bias not ruled out, max over tile-channels
-    tile: int | None  # the finest tile size whose bound lies within the tolerance
-    beyond: bool = False  # a significant tile-channel differs by more than the tolerance (see significant_beyond)
-
-    @property
-    def equivalent(self) -> bool:
-        return self.tile is not None and not self.beyond
-
-    @property
-    def best(self) -> tuple[int, float] | None:
-        """(tile size, bound) of the smallest bound over the scales, or None when no scale bounds every tile."""
-        finite = [(bound, tile) for tile, bound in self.ruled_out.items() if np.isfinite(bound)]
-        if not finite:
-            return None
-        bound, tile = min(finite)
-        return tile, bound
 
 
 @dataclass(frozen=True)
@@ -209,47 +177,80 @@ class TileTest:
     suspect: np.ndarray  # tile-channels whose Welch samples are clearly not normal
     checked: bool  # normality checked (enough passes)
     ref_mean: np.ndarray
+    #: the variance of the reference mean's estimate, and its covariance with the mean difference's (-ref_var
+    #: for independent sides; paired, from the per-pass covariance): what a ratio's interval needs
+    ref_var: np.ndarray
+    cross: np.ndarray
 
 
 def scale_factors(run: TileStats, tile: int | None = None) -> list[int]:
-    """The factors of the stored tile that give the tested scales: 1, 2, 4, ... while a tile fits the image, or
-    the one factor of `tile` (which must be a multiple of the stored tile that fits the image)."""
+    """The factors of the stored tile that give the tested scales: 1, 2, 4, ... up to the one whose single tile
+    covers the whole image (the tiles at the right and bottom edges partial where a factor does not divide the
+    grid), or the one factor of `tile` (a multiple of the stored tile, at most the image's longer side)."""
     if tile is not None:
         if isinstance(tile, bool) or not isinstance(tile, (int, np.integer)) or tile < 1 or tile % run.tile:
             raise WelchInputError(f"`tile` must be a multiple of the stored tile {run.tile}, got {tile!r}")
-        if tile > min(run.height, run.width):
+        if tile > max(run.height, run.width):
             raise WelchInputError(f"`tile` {tile} is larger than the image {run.width}x{run.height}")
         return [tile // run.tile]
-    factors, f = [], 1
-    while run.tile * f <= min(run.height, run.width):
-        factors.append(f)
+    factors, f = [1], 1
+    while max(run.tiles_y, run.tiles_x) > f:
         f *= 2
+        factors.append(f)
     return factors
 
 
 def test_tiles(ref: TileStats, test: TileStats, kind: str, pvalue_method: str = "exact") -> TileTest:
     """Welch's test (disjoint seeds) or the paired test (identical seeds) per tile and channel, with the
     normality check of the Welch samples (of each side, or of the per-pass differences)."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ref_var = ref.variance / ref.n
     if kind == "paired":
-        if test.seeds == ref.seeds:
-            test_sums = test.sums
-        else:
-            order = {seed: i for i, seed in enumerate(test.seeds)}
-            test_sums = test.sums[[order[s] for s in ref.seeds]]
-        differences = test_sums - ref.sums
-        if not np.count_nonzero(differences):  # no temporaries, unlike array_equal
-            raise WelchInputError(
-                "the two runs hold the same passes (a run compared with itself): compare it with a run rendered "
-                "with other seeds or settings, or run selftest on it"
-            )
-        diffs = TileStats.from_sums(differences, ref.seeds, ref.height, ref.width, ref.tile)
+        diffs = paired_differences(ref, test)
         result = paired_from_stats(diffs.mean, diffs.variance, diffs.n, pvalue_method=pvalue_method)
-        return TileTest(kind, result, normality(diffs).suspect, diffs.n >= MIN_PASSES_FOR_NORMALITY, ref.mean)
+        # cov(d, r) per pass from Var(test) = Var(ref) + Var(d) + 2 cov(d, r), over the passes' count
+        with np.errstate(invalid="ignore", divide="ignore"):
+            cross = (test.variance - ref.variance - diffs.variance) / (2.0 * diffs.n)
+        checked = diffs.n >= MIN_PASSES_FOR_NORMALITY
+        return TileTest(kind, result, normality(diffs).suspect, checked, ref.mean, ref_var, cross)
     result = welch_from_stats(
         ref.mean, ref.variance, ref.n, test.mean, test.variance, test.n, pvalue_method=pvalue_method
     )
     suspect = normality(ref).suspect | normality(test).suspect
-    return TileTest(kind, result, suspect, min(ref.n, test.n) >= MIN_PASSES_FOR_NORMALITY, ref.mean)
+    checked = min(ref.n, test.n) >= MIN_PASSES_FOR_NORMALITY
+    return TileTest(kind, result, suspect, checked, ref.mean, ref_var, -ref_var)
+
+
+def paired_differences(ref: TileStats, test: TileStats) -> TileStats:
+    """The per-pass differences test - reference of two runs with the same seeds, in the reference's order."""
+    if test.seeds == ref.seeds:
+        test_sums = test.sums
+    else:
+        order = {seed: i for i, seed in enumerate(test.seeds)}
+        test_sums = test.sums[[order[s] for s in ref.seeds]]
+    return TileStats.from_sums(
+        test_sums - ref.sums, ref.seeds, ref.height, ref.width, ref.tile, edges=ref.edges, covered=ref.covered
+    )
+
+
+def identical_passes_of(ref: TileStats, test: TileStats, kind: str) -> bool:
+    """Whether every pass of `test` equals the reference's pass of the same seed in every tile sum (the paired
+    case; disjoint seeds are never identical passes). Two runs with identical passes that were also made the
+    same way (the same configuration) are one run compared with itself: refused, as that is a mistake and not
+    evidence that two settings agree."""
+    if kind != "paired":
+        return False
+    if test.seeds == ref.seeds:
+        same = bool(np.array_equal(test.sums, ref.sums, equal_nan=True))
+    else:
+        order = {seed: i for i, seed in enumerate(test.seeds)}
+        same = bool(np.array_equal(test.sums[[order[s] for s in ref.seeds]], ref.sums, equal_nan=True))
+    if same and ref.info.identity() == test.info.identity():
+        raise WelchInputError(
+            "the two runs hold the same passes and were made the same way (a run compared with itself): compare "
+            "it with a run rendered with other seeds or settings, or run selftest on it"
+        )
+    return same
 
 
 def compare(
@@ -260,6 +261,7 @@ def compare(
     pvalue_method: str = "exact",
     tile: int | None = None,
     tolerance: float | None = None,
+    equivalence_tile: int | None = None,
 ) -> Comparison:
     """Test whether `test` converges to the same image as `ref`, per tile at every scale and as a whole.
 
@@ -268,8 +270,7 @@ def compare(
     ref, test : TileStats
         The two runs, on the same grid.
     alpha : float
-        The false-positive rate of a `biased` verdict (and of an `equivalent` one when the true difference is at
-        the tolerance).
+        The false-positive rate of a `biased` verdict, and of an `equivalent` one (see `welch_core.decision`).
     test_kind : {"auto", "welch", "paired"}
         "auto" picks the paired test when both runs used the same seeds and Welch's test when they are disjoint.
     pvalue_method : {"exact", "gauss", "as_erf"}
@@ -277,58 +278,85 @@ def compare(
     tile : int, optional
         Test only this tile size (a multiple of the stored tile); default: every scale.
     tolerance : float, optional
-        Relative tolerance (0.005 for 0.5 %): enables the `equivalent` verdict.
+        Relative tolerance (0.005 for 0.5 %): enables the `equivalent` verdict, which then says that every tile
+        of the finest tested scale is within it.
+    equivalence_tile : int, optional
+        Claim `equivalent` at this coarser tile size instead (one of the tested scales).
 
     Returns
     -------
     Comparison
-        The finest scale's per-tile results, with the verdict and the global p-value of all scales, the scales
-        themselves (`scales`), the base tiles no scale could test (`uncovered`) and the equivalence assessment.
+        The finest scale's per-tile results, the scales themselves (`scales`), the base tiles no scale could test
+        (`uncovered`) and the `outcome`: the verdict and every number that goes with it.
+
+    The per-scale p-values are Holm's test over the tiles and a one-sided KS test of uniformity, Bonferroni-
+    combined; the global p-value is the number of scales times the smallest. A tile is `significant` when its
+    Holm-adjusted p alone brings the global p-value to alpha (adjusted p x 2 x scales <= alpha), so a tile is
+    outlined only where the verdict is `biased`.
     """
     alpha = check_alpha(alpha)
-    if tolerance is not None and not (isinstance(tolerance, (int, float)) and 0 < tolerance < 10):
-        raise WelchInputError(f"`tolerance` must be a relative difference in (0, 10), got {tolerance!r}")
+    tolerance = check_tolerance(tolerance)
     ref.same_grid(test)
     kind = choose_test(ref, test, test_kind)
-    scales, tests, uncovered = assess_scales(ref, test, kind, pvalue_method, alpha, tile)
-    finest = scales[0]
-    relevant = ~(finest.reasons == Reason.ZERO_VARIANCE).all(axis=-1)
+    identical = identical_passes_of(ref, test, kind)
+    scales, tests, runs, uncovered = assess_scales(ref, test, kind, pvalue_method, alpha, tile)
+    claim = check_claim_tile(equivalence_tile, scales, tolerance)
+    count = len(scales)
+    with np.errstate(invalid="ignore"):
+        significant = [s.global_test.adjusted * 2 * count <= alpha for s in scales]
+    scales = tuple(dataclasses.replace(s, significant=sig) for s, sig in zip(scales, significant, strict=True))
     p_values = [s.p_value for s in scales if np.isfinite(s.p_value)]
-    p_value = min(1.0, len(scales) * min(p_values)) if p_values else float("nan")  # Bonferroni over the scales
-    equivalence = None
-    if tolerance is not None:
-        levels = [alpha / (len(scales) * s.pvalues.size) for s in scales]
-        equivalence = bound_differences(scales, tests, levels, uncovered, float(tolerance))
-    if equivalence is not None and equivalence.equivalent:
-        significant = [s.significant[..., None] & (s.reasons == Reason.VALID) for s in scales]
-        if significant_beyond(significant, tests, float(tolerance)):
-            equivalence = dataclasses.replace(equivalence, beyond=True)
-    if any(s.n_deterministic for s in scales):
-        verdict, p_value = Verdict.BIASED, 0.0
-    elif equivalence is not None and equivalence.equivalent and uncovered.sum() <= MAX_UNTRUSTED_SHARE * relevant.sum():
-        verdict = Verdict.EQUIVALENT  # a difference, significant or not, that the intervals bound within tolerance
-    elif p_values and p_value <= alpha:
-        verdict = Verdict.BIASED
-    elif not any(s.used.any() for s in scales) or uncovered.sum() > MAX_UNTRUSTED_SHARE * relevant.sum():
-        verdict = Verdict.INCONCLUSIVE
-    else:
-        verdict = Verdict.NO_EVIDENCE
-    return dataclasses.replace(
-        finest, verdict=verdict, p_value=p_value, scales=scales, uncovered=uncovered, equivalence=equivalence
+    p_value = min(1.0, count * min(p_values)) if p_values else float("nan")  # Bonferroni over the scales
+    evidence = Evidence(
+        design="fixed",
+        significant=[sig[..., None] & (s.reasons == Reason.VALID) for s, sig in zip(scales, significant, strict=True)],
+        simultaneous=[alpha / (2 * count * s.pvalues.size) for s in scales],
+        equivalence=2 * alpha,
+        whole=alpha,
+        p_value=p_value,
     )
+    whole = test_tiles(ref.whole(), test.whole(), kind, pvalue_method)
+    outcome = decide(scales, tests, runs, evidence, alpha, tolerance, claim, identical, whole, uncovered)
+    finest = scales[0]
+    if outcome.deterministic:
+        p_value = 0.0
+    return dataclasses.replace(finest, p_value=p_value, scales=scales, uncovered=uncovered, outcome=outcome)
+
+
+def check_tolerance(tolerance) -> float | None:
+    if tolerance is None:
+        return None
+    if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float)) or not 0 < tolerance < 10:
+        raise WelchInputError(f"`tolerance` must be a relative difference in (0, 10), got {tolerance!r}")
+    return float(tolerance)
+
+
+def check_claim_tile(equivalence_tile, scales, tolerance) -> int | None:
+    """The tile size an `equivalent` speaks of: the finest tested one unless a coarser one is asked for."""
+    if equivalence_tile is None:
+        return scales[0].tile if tolerance is not None else None
+    if tolerance is None:
+        raise WelchInputError("`equivalence_tile` needs a `tolerance`")
+    sizes = [s.tile for s in scales]
+    if equivalence_tile not in sizes:
+        raise WelchInputError(
+            f"`equivalence_tile` must be one of the tested tile sizes {sizes}, got {equivalence_tile!r}"
+        )
+    return int(equivalence_tile)
 
 
 def assess_scales(ref: TileStats, test: TileStats, kind: str, pvalue_method: str, alpha: float, tile=None):
-    """Every scale tested and judged on its own: (the scales' comparisons, their tile tests, the finest tiles no
-    scale can test). `compare` combines them into one verdict; the group-sequential `looks` use them too."""
-    tests, scales = [], []
+    """Every scale tested on its own: (the scales' comparisons, their tile tests, their (reference, test) runs,
+    the finest tiles no scale can test). `compare` and the looks decide from them."""
+    tests, scales, runs = [], [], []
     a, b, done = ref, test, 1
-    for f in scale_factors(ref, tile):  # one scale at a time: only the previous scale's sums are kept
-        if f != done:  # each scale from the one before (factors 1, 2, 4, ...): a quarter of the sums to add
+    for f in scale_factors(ref, tile):  # one scale at a time from the one before (factors 1, 2, 4, ...)
+        if f != done:
             a, b, done = a.retile(f // done), b.retile(f // done), f
+        runs.append((a, b))
         tests.append(test_tiles(a, b, kind, pvalue_method))
-        scales.append(_decide(a, b, tests[-1], pvalue_method, alpha))
-    return tuple(scales), tests, _uncovered(scales[0], scales)
+        scales.append(_scale(a, b, tests[-1], pvalue_method, alpha))
+    return tuple(scales), tests, runs, _uncovered(scales[0], scales)
 
 
 def choose_test(ref: TileStats, test: TileStats, test_kind: str = "auto") -> str:
@@ -337,29 +365,16 @@ def choose_test(ref: TileStats, test: TileStats, test_kind: str = "auto") -> str
     return _choose_test(test_kind, relation, len(set(ref.seeds) & set(test.seeds)))
 
 
-def _decide(ref, test, tested: TileTest, pvalue_method, alpha) -> Comparison:
-    """One scale's verdict: its tiles by Holm and the KS test of uniformity (see `multitest`)."""
+def _scale(ref, test, tested: TileTest, pvalue_method, alpha) -> Comparison:
+    """One scale's statistics: its tiles by Holm and the KS test of uniformity (see `multitest`)."""
     result, suspect = tested.result, tested.suspect
     tile_p = combine_channels(result.pvalue)
     trusted = ~suspect.any(axis=-1)
     used = np.isfinite(tile_p) & trusted
     glob = global_test(np.where(used, tile_p, np.nan), alpha)
-    untrusted = int((np.isfinite(tile_p) & ~trusted).sum())
-    p_value = glob.pvalue
-    if (result.reason == Reason.DETERMINISTIC_DIFFERENCE).any():
-        verdict, p_value = Verdict.BIASED, 0.0
-    elif not used.any():
-        verdict = Verdict.INCONCLUSIVE
-    elif glob.rejected:
-        verdict = Verdict.BIASED
-    elif untrusted > MAX_UNTRUSTED_SHARE * np.isfinite(tile_p).sum():
-        verdict = Verdict.INCONCLUSIVE
-    else:
-        verdict = Verdict.NO_EVIDENCE
     return Comparison(
-        verdict=verdict,
         alpha=alpha,
-        p_value=p_value,
+        p_value=glob.pvalue,
         test=tested.kind,
         pvalue_method=pvalue_method,
         result=result,
@@ -367,7 +382,9 @@ def _decide(ref, test, tested: TileTest, pvalue_method, alpha) -> Comparison:
         trusted=trusted,
         normality_checked=tested.checked,
         global_test=glob,
+        significant=np.zeros(tile_p.shape, bool),
         ref_mean=ref.mean,
+        tested=tested,
         n_ref=ref.n,
         n_test=test.n,
         width=ref.width,
@@ -376,56 +393,19 @@ def _decide(ref, test, tested: TileTest, pvalue_method, alpha) -> Comparison:
     )
 
 
-def _covering(finest: Comparison, scale: Comparison, values: np.ndarray, fill) -> np.ndarray:
-    """`values` of a scale's tiles at the finest grid: each finest tile gets its covering tile's value (`fill`
-    where the scale's grid, which drops incomplete tiles, does not reach)."""
+def covering(finest: Comparison, scale: Comparison, values: np.ndarray) -> np.ndarray:
+    """`values` of a scale's tiles at the finest grid: each finest tile gets its covering tile's value (every
+    finest tile has one: the coarse grids cover what the finest does)."""
     ty, tx = finest.tile_pvalues.shape
     f = scale.tile // finest.tile
-    rows, cols = np.arange(ty) // f, np.arange(tx) // f
-    inside = (rows[:, None] < values.shape[0]) & (cols[None, :] < values.shape[1])
-    r, c = np.minimum(rows, values.shape[0] - 1), np.minimum(cols, values.shape[1] - 1)
-    return np.where(inside, values[r[:, None], c[None, :]], fill)
+    r, c = np.arange(ty) // f, np.arange(tx) // f
+    return values[r[:, None], c[None, :]]
 
 
 def _uncovered(finest: Comparison, scales) -> np.ndarray:
     """Finest tiles that no scale tests (used: testable and trusted), among those not constant on both sides."""
     covered = np.zeros(finest.tile_pvalues.shape, dtype=bool)
     for scale in scales:
-        covered |= _covering(finest, scale, scale.used, False)
+        covered |= covering(finest, scale, scale.used)
     relevant = ~(finest.reasons == Reason.ZERO_VARIANCE).all(axis=-1)
     return relevant & ~covered
-
-
-def significant_beyond(significant: list[np.ndarray], tests: list[TileTest], tolerance: float) -> bool:
-    """Whether a tile-channel found significant at some scale (`significant`: a mask per scale) differs by more
-    than `tolerance` by its estimate. Such a tile rules `equivalent` out: a coarser scale's bound on a region's
-    mean would otherwise hide a local bias several times the tolerance (a +5 % tile under a 64-tile region
-    bounded within 1 %)."""
-    for mask, tested in zip(significant, tests, strict=True):
-        with np.errstate(invalid="ignore", divide="ignore"):
-            rel = np.abs(tested.result.mean_difference / np.abs(tested.ref_mean))
-        if np.any(mask & (rel > tolerance)):
-            return True
-    return False
-
-
-def bound_differences(scales, tests, levels, uncovered: np.ndarray, tolerance: float) -> Equivalence:
-    """Per scale, the largest relative bias its simultaneous intervals leave open over the tiles it must cover:
-    every tile whose region some scale can test, bar constant ones (whose difference is known to be zero).
-    `levels` are the per-tile-channel error levels of each scale's intervals (a Bonferroni share, or the nominal
-    level of a group-sequential boundary)."""
-    finest = scales[0]
-    ruled_out = {}
-    for scale, tested, level in zip(scales, tests, levels, strict=True):
-        low, high = relative_interval(tested.result, tested.ref_mean, level)
-        bound = np.maximum(np.abs(low), np.abs(high))
-        equal = scale.reasons == Reason.ZERO_VARIANCE
-        used = scale.used[..., None] & (scale.reasons == Reason.VALID)
-        bounds = np.where(used, bound, np.where(equal, 0.0, np.inf))
-        per_tile = np.nanmax(np.where(np.isnan(bounds), np.inf, bounds), axis=-1)
-        # Tiles this scale must bound: those whose region is testable somewhere; its grid must reach them all.
-        needed = _covering(finest, scale, per_tile, np.inf)
-        needed = np.where(uncovered, 0.0, needed)
-        ruled_out[scale.tile] = float(needed.max()) if (~uncovered).any() else float("inf")
-    within = [tile for tile, bound in ruled_out.items() if bound <= tolerance]
-    return Equivalence(tolerance, ruled_out, min(within) if within else None)

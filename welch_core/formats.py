@@ -18,7 +18,10 @@ preview_sum    float32 (h/f, w/f, c), optional pixel_sum in block means of f x f
 =============  ==============================  ===========================================================
 
 Version 1 files (which also stored a mean and M2, and a mean image instead of the pixel sum) are still read;
-their stored moments must agree with their sums.
+their stored moments must agree with their sums. A run whose tile does not divide the image has partial tiles at
+its right and bottom edges (``"edges": "partial"`` in the metadata): such files are version 4, since a reader of
+an earlier version would take their grid for one without those tiles. Files of earlier versions have no edge
+tiles (``edges="dropped"``: the strip no whole tile covers is untested).
 
 Loading reads only these keys, checks every header (dtype, shape, size against the metadata and against the
 bytes in the file) before allocating, and checks the content against itself; any failure is a
@@ -49,7 +52,9 @@ FORMAT_VERSION = 2
 #: Files with layers (light components, light groups) are version 3; without, version 2 as before, so that a
 #: tool that reads version 2 still reads every file without layers.
 LAYERS_VERSION = 3
-READABLE_VERSIONS = (1, 2, 3)
+#: Files with partial edge tiles (an image the tile does not divide), with or without layers.
+EDGES_VERSION = 4
+READABLE_VERSIONS = (1, 2, 3, 4)
 
 #: Seeds are non-negative and fit int64 (ingested passes of unknown seed get a 62-bit id from their content).
 MAX_SEED_VALUE = 2**63 - 1
@@ -101,9 +106,13 @@ def save_stats(path: str | os.PathLike, stats: TileStats, layers: dict[str, Tile
     }
     if layers:
         meta["layers"] = list(layers)
+    partial = stats.edges == "partial" and (stats.height % stats.tile or stats.width % stats.tile)
+    if partial:
+        meta["edges"] = "partial"
+    version = EDGES_VERSION if partial else LAYERS_VERSION if layers else FORMAT_VERSION
     arrays = {
         "format": np.array(FORMAT_NAME),
-        "version": np.array(LAYERS_VERSION if layers else FORMAT_VERSION, dtype=np.int64),
+        "version": np.array(version, dtype=np.int64),
         "meta": np.array(json.dumps(meta, sort_keys=True, allow_nan=False)),
         "seeds": np.array(stats.seeds, dtype=np.int64),
         "sums": sums,
@@ -269,13 +278,13 @@ class _Reader:
         if "format" not in self.members or self.scalar_or_none("format", "U") != FORMAT_NAME:
             raise StatsFileError(f"{self.name!r} is not a {FORMAT_NAME} file")
         if "version" not in self.members:
-            raise StatsFileError(f"{self.name!r} has no format version; this tool reads versions 1 to 3")
+            raise StatsFileError(f"{self.name!r} has no format version; this tool reads versions 1 to 4")
         version = self.array("version", "iufcUSb", None)
         if version.shape != () or version.dtype.kind not in "iu":
             raise StatsFileError(f"{self.name!r} has a format version that is not an integer: {_short(version)}")
         version = int(version)
         if version not in READABLE_VERSIONS:
-            raise StatsFileError(f"{self.name!r} has format version {version}; this tool reads versions 1 to 3")
+            raise StatsFileError(f"{self.name!r} has format version {version}; this tool reads versions 1 to 4")
         return version
 
     def layers(self, pixels: bool) -> dict[str, TileStats]:
@@ -297,7 +306,7 @@ class _Reader:
                 shape = (image.height, image.width, image.channels)
                 pixel_sum = self.array(f"layer{index}_pixel_sum", "f", shape, required=False)
             out[name] = TileStats.from_sums(
-                sums, image.seeds, image.height, image.width, image.tile, image.info, pixel_sum
+                sums, image.seeds, image.height, image.width, image.tile, image.info, pixel_sum, image.edges
             )
         return out
 
@@ -315,9 +324,12 @@ class _Reader:
         version = self.version()
         meta = self.meta()
         height, width, tile, channels = (meta[k] for k in ("height", "width", "tile", "channels"))
+        edges = "partial" if version >= EDGES_VERSION else "dropped"
+        if meta.get("edges", "dropped") != edges:
+            raise self.fail(f"metadata 'edges' must be {edges!r} in a version {version} file")
         try:
             info = RunInfo.from_json(meta["info"])
-            grid = TileStats(height, width, tile, channels, info, keep_mean_image=False).grid_shape
+            grid = TileStats(height, width, tile, channels, info, keep_mean_image=False, edges=edges).grid_shape
         except (WelchInputError, TypeError) as exc:
             raise self.fail(str(exc)) from None
         seeds = self.array("seeds", "iu", None)
@@ -336,7 +348,7 @@ class _Reader:
             self.check_version1_moments(sums, grid)
         elif pixels:
             pixel_sum = self.array("pixel_sum", "f", (height, width, channels), required=False)
-        return TileStats.from_sums(sums, seeds.tolist(), height, width, tile, info, pixel_sum)
+        return TileStats.from_sums(sums, seeds.tolist(), height, width, tile, info, pixel_sum, edges)
 
     def scalar_or_none(self, key: str, kinds: str):
         try:

@@ -10,9 +10,10 @@ over hypotheses and the spending over looks, the chance that an unbiased pair is
 alpha (measured: 5.0 % at alpha = 0.05 over 2000 sequences of skewed Welch samples with variances 1:9, against
 40 % when stopping at the first `compare` with p <= alpha). The same boundaries give repeated confidence
 intervals of the relative difference, which cover every tile's true difference at every look simultaneously
-with probability 1 - alpha (Jennison and Turnbull 2000, ch. 9): the run is `equivalent` once, at some scale,
-they all lie inside +-tolerance, and a run whose true difference is at the tolerance is called equivalent in at
-most alpha of the cases.
+with probability 1 - alpha (Jennison and Turnbull 2000, ch. 9): those of the largest and the most significant
+tile. `equivalent` is an intersection-union claim with its own level per tile-channel of the claim scale (2 alpha
+for its two one-sided tests, spent over the looks in the same way): see `welch_core.decision` and
+`sequential_look`; the rules of the verdict are those of a fixed design, with these levels.
 
 Why Pocock's shape, not O'Brien-Fleming's: a renderer that is biased should be caught after a few chunks, and
 one that is not should be cleared as soon as possible. O'Brien-Fleming spends almost nothing early, so a bias that
@@ -34,7 +35,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .comparison import TileTest, assess_scales, bound_differences, choose_test, significant_beyond
+from .comparison import TileTest, assess_scales, check_claim_tile, choose_test, identical_passes_of, test_tiles
+from .decision import Evidence, Outcome, decide
 from .errors import WelchInputError, check_alpha, check_int
 from .sequential import SPENDING, boundaries, nominal_levels
 from .tiles import TileStats
@@ -68,6 +70,7 @@ class SequentialPlan:
     tolerance: float | None = 0.01
     spending: str = "pocock"
     test_kind: str = "auto"
+    equivalence_tile: int | None = None  # claim `equivalent` at this tile size (default: the finest)
 
     def __post_init__(self):
         check_int("max_passes", self.max_passes, minimum=FIRST_LOOK)
@@ -105,17 +108,38 @@ def information_fraction(passes: int, max_passes: int, reference_passes: int | N
 
 @dataclass(frozen=True)
 class Look:
-    """What one look found. `verdict` is `biased`, `equivalent`, or None (go on)."""
+    """What one look found: its `outcome` (the verdict and its numbers), and the strongest hypothesis against its
+    boundary (for a progress line)."""
 
     passes: int  # a side
     fraction: float  # information fraction: passes / max_passes (1 at the last look)
-    verdict: Verdict | None
+    outcome: Outcome
     p_value: float  # the most significant tested tile-channel's p-value...
     threshold: float  # ...and the nominal level it had to reach at this look (at its scale)
     crossed: int  # tile-channels past their boundary
-    ruled_out: float  # the smallest bound on |relative bias| over the scales (inf: none bounds every tile)
-    ruled_out_tile: int | None  # the tile size of that bound
-    uncovered: int  # finest tiles no scale can test yet
+
+    @property
+    def verdict(self) -> Verdict | None:
+        """`biased` or `equivalent` (stop), or None (go on); at the last look the outcome's verdict."""
+        return self.outcome.verdict if self.outcome.decided else None
+
+    @property
+    def ruled_out(self) -> float:
+        """The bias ruled out in every tile of the claim scale (the finest, unless another was asked for)."""
+        bound = self.bound_scale.ruled_out
+        return math.inf if bound is None else bound
+
+    @property
+    def ruled_out_tile(self) -> int:
+        return self.bound_scale.tile
+
+    @property
+    def bound_scale(self):
+        return self.outcome.claim or self.outcome.finest
+
+    @property
+    def uncovered(self) -> int:
+        return self.outcome.untestable
 
 
 def _conservative(tested: TileTest, n: int) -> TileTest:
@@ -138,53 +162,72 @@ def _levels(fractions: tuple[float, ...], shares: tuple[float, ...], spending: s
     return levels
 
 
-def sequential_look(ref: TileStats, test: TileStats, plan: SequentialPlan, fractions) -> Look:
+def sequential_look(
+    ref: TileStats, test: TileStats, plan: SequentialPlan, fractions, final: bool | None = None
+) -> Look:
     """The decision at the last of the looks at information `fractions` (every look so far, increasing).
 
     The boundaries of the earlier looks shape this one's (alpha spent before is not spent again), so the
-    fractions of every look so far are needed; they are recomputed identically on resume.
+    fractions of every look so far are needed; they are recomputed identically on resume. `final` says this is
+    the last look (default: its fraction is 1); a check stopped by its time budget passes True.
+
+    Each tile-channel of each scale has the Bonferroni share alpha / (S m_s) of `biased`, spent over the looks;
+    each tile-channel of the claim scale has 2 alpha for its equivalence interval (the two one-sided tests of an
+    intersection-union test, see `welch_core.decision`), and the whole image alpha for its interval, each spent
+    over the looks in the same way. The two one-sided boundaries of an equivalence interval come from one
+    two-sided boundary at 2 alpha: each side is crossed with probability alpha + P(both are crossed, at
+    different looks) / 2, and a path that crosses -c_j and then +c_k needs a swing of about 2c in W, of
+    probability below 1e-4 alpha for the levels used here.
     """
     fractions = np.asarray(fractions, dtype=float)
     ref.same_grid(test)
     kind = choose_test(ref, test, plan.test_kind)
-    scales, tests, uncovered = assess_scales(ref, test, kind, "exact", plan.alpha)
+    identical = identical_passes_of(ref, test, kind)
+    scales, tests, runs, uncovered = assess_scales(ref, test, kind, "exact", plan.alpha)
+    whole = test_tiles(ref.whole(), test.whole(), kind)
+    n = min(ref.n, test.n)
     if kind == "welch":
-        tests = [_conservative(t, min(ref.n, test.n)) for t in tests]
+        tests = [_conservative(t, n) for t in tests]
+        whole = _conservative(whole, n)
+        scales = tuple(dataclasses.replace(s, result=t.result) for s, t in zip(scales, tests, strict=True))
     shares = tuple(plan.alpha / (len(scales) * scale.pvalues.size) for scale in scales)
-    levels = _levels(tuple(fractions.tolist()), shares, plan.spending)
-    verdict = None
+    equivalence_alpha = min(2 * plan.alpha, 0.5)
+    levels = _levels(tuple(fractions.tolist()), (*shares, equivalence_alpha, plan.alpha), plan.spending)
+    scale_levels, equivalence_level, whole_level = levels[: len(scales)], levels[-2], levels[-1]
+    significant = []
     crossed, best = 0, (0.0, 1.0, 1.0)  # (log ratio of p to its level, p, level) of the strongest hypothesis
-    deterministic = False
-    past = []  # per scale, the tile-channels past their boundary
-    for scale, tested_tiles, level in zip(scales, tests, levels, strict=True):
+    for scale, level in zip(scales, scale_levels, strict=True):
         tested = scale.used[..., None] & (scale.reasons == Reason.VALID)
-        p = np.where(tested, tested_tiles.result.pvalue, np.nan)
-        past.append(p <= level)
-        crossed += int(np.sum(past[-1]))
-        deterministic |= scale.n_deterministic > 0
+        p = np.where(tested, scale.pvalues, np.nan)
+        with np.errstate(invalid="ignore"):
+            significant.append(p <= level)
+        crossed += int(np.sum(significant[-1]))
         if np.isfinite(p).any() and level > 0:
             with np.errstate(divide="ignore"):
                 ratio = np.log(np.nanmin(p)) / math.log(level)  # >= 1: crossed
             if ratio > best[0]:
                 best = (float(ratio), float(np.nanmin(p)), float(level))
-    if crossed or deterministic:
-        verdict = Verdict.BIASED
-    equivalence = bound_differences(scales, tests, list(levels), uncovered, plan.tolerance or math.inf)
-    if plan.tolerance is not None and equivalence.equivalent and significant_beyond(past, tests, plan.tolerance):
-        equivalence = dataclasses.replace(equivalence, beyond=True)  # a crossed tile differs by more than that
-    relevant = ~(scales[0].reasons == Reason.ZERO_VARIANCE).all(axis=-1)
-    covered_enough = uncovered.sum() <= 0.25 * relevant.sum()
-    if plan.tolerance is not None and equivalence.equivalent and covered_enough:
-        verdict = Verdict.EQUIVALENT  # bounded inside the tolerance: equivalent, even if a small bias shows
-    bound = equivalence.best
+    evidence = Evidence(
+        design="sequential",
+        significant=significant,
+        simultaneous=[float(level) for level in scale_levels],
+        equivalence=float(equivalence_level),
+        whole=float(whole_level),
+        final=bool(fractions[-1] >= 1.0) if final is None else final,
+        family="every tile-channel of every tile size, at every look",
+    )
+    outcome = decide(
+        scales, tests, runs, evidence, plan.alpha, plan.tolerance, _claim(plan, scales), identical, whole, uncovered
+    )
     return Look(
-        passes=min(ref.n, test.n),
+        passes=n,
         fraction=float(fractions[-1]),
-        verdict=verdict,
+        outcome=outcome,
         p_value=best[1],
         threshold=best[2],
         crossed=crossed,
-        ruled_out=bound[1] if bound else math.inf,
-        ruled_out_tile=bound[0] if bound else None,
-        uncovered=int(uncovered.sum()),
     )
+
+
+def _claim(plan: SequentialPlan, scales) -> int | None:
+    return check_claim_tile(plan.equivalence_tile, scales, plan.tolerance)

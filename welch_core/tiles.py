@@ -2,8 +2,10 @@
 
 A *pass* is one independent render of the image (its own seed), an H×W×C float array, top row first. The Welch
 sample of a tile is the sum of the pass's pixel values over the tile (§4.1: one MC sample per pixel, summed; the
-constant 1/tile² normalisation is skipped as in the paper). Incomplete tiles at the right and bottom edges are
-dropped.
+constant 1/tile² normalisation is skipped as in the paper). Where the tile does not divide the image, the tiles at
+the right and bottom edges are partial (the paper drops them, §4.1): a partial tile's sum is as good a Welch sample
+as any, and dropping it would leave a strip of the image untested without a word. Runs of files written before
+partial tiles (``edges="dropped"``) keep their dropped strip, and say how many pixels it holds.
 
 `TileStats` keeps every pass's tile sums, and they are its one source of truth: the paired test, the normality
 diagnostics, re-tiling, subsetting and merging need them anyway, and they are small (1080p at 32×32 tiles is
@@ -25,7 +27,7 @@ import numpy.typing as npt
 
 from .errors import GridMismatchError, RunMismatchError, WelchInputError, check_int
 
-__all__ = ["MAX_IMAGE_SIDE", "MAX_SPP", "RunInfo", "TileStats", "tile_row_blocks", "tile_sums"]
+__all__ = ["EDGES", "MAX_IMAGE_SIDE", "MAX_SPP", "RunInfo", "TileStats", "grid_size", "tile_row_blocks", "tile_sums"]
 
 #: Cycles' largest render side (it clamps larger resolutions to this) and largest sample count (2**24).
 MAX_IMAGE_SIDE = 65536
@@ -102,16 +104,51 @@ class RunInfo:
         return {name: getattr(self, name) for name in IDENTITY_FIELDS}
 
 
-def tile_sums(image: npt.ArrayLike, tile: int, channels: int = 3) -> np.ndarray:
-    """Sum an H×W×C image over complete `tile`×`tile` blocks: the Welch samples of one pass (§4.1).
+#: How the tiles meet the right and bottom edges of an image the tile does not divide: "partial" tiles cover the
+#: whole image; "dropped" (statistics files of earlier versions) leaves the incomplete tiles out.
+EDGES = ("partial", "dropped")
 
-    Returns a float64 array of shape (H // tile, W // tile, channels). Extra channels (alpha) are ignored.
+
+def grid_size(height: int, width: int, tile: int, edges: str = "partial") -> tuple[int, int]:
+    """Tiles down and across an image of `height` x `width` pixels."""
+    if edges == "partial":
+        return -(-height // tile), -(-width // tile)
+    return height // tile, width // tile
+
+
+def tile_sums(image: npt.ArrayLike, tile: int, channels: int = 3, edges: str = "partial") -> np.ndarray:
+    """Sum an H×W×C image over `tile`×`tile` blocks: the Welch samples of one pass (§4.1).
+
+    Returns a float64 array of shape (ceil(H / tile), ceil(W / tile), channels): the last row and column of
+    tiles are partial where `tile` does not divide the image (``edges="dropped"``: left out, as the paper does,
+    shape (H // tile, W // tile, channels)). Extra channels (alpha) are ignored.
     """
     tile, channels = check_int("tile", tile), check_int("channels", channels)
     image = _check_image(image, channels)
     if tile > min(image.shape[:2]):
         raise WelchInputError(f"`tile` must not exceed the image size {image.shape[1]}x{image.shape[0]}, got {tile}")
-    ty, tx = image.shape[0] // tile, image.shape[1] // tile
+    if edges not in EDGES:
+        raise WelchInputError(f"`edges` must be one of {EDGES}, got {edges!r}")
+    height, width = image.shape[:2]
+    ty, tx = height // tile, width // tile
+    full = _full_tile_sums(image, tile, channels, ty, tx)
+    if edges == "dropped" or (height % tile == 0 and width % tile == 0):
+        return full
+    out = np.zeros((*grid_size(height, width, tile), channels))
+    out[:ty, :tx] = full
+    if width % tile:  # the partial column, then the partial row (with the corner)
+        right = image[: ty * tile, tx * tile :, :channels].reshape(ty, tile, -1, channels)
+        out[:ty, tx] = right.sum(axis=(1, 2), dtype=np.float64)
+    if height % tile:
+        bottom = image[ty * tile :, :, :channels]
+        padded = np.zeros((bottom.shape[0], out.shape[1] * tile, channels), bottom.dtype)
+        padded[:, :width] = bottom
+        out[ty] = padded.reshape(bottom.shape[0], out.shape[1], tile, channels).sum(axis=(0, 2), dtype=np.float64)
+    return out
+
+
+def _full_tile_sums(image: np.ndarray, tile: int, channels: int, ty: int, tx: int) -> np.ndarray:
+    """The sums of the complete tiles, (ty, tx, channels)."""
     width = image.shape[1]
     rows = image[: ty * tile].reshape(ty, tile, width * image.shape[2])
     # Sum the tile's rows first with a contiguous inner axis (near memory speed), then the columns in float64.
@@ -185,15 +222,24 @@ class TileStats:
         channels: int = 3,
         info: RunInfo | None = None,
         keep_mean_image: bool = True,
+        edges: str = "partial",
+        covered: tuple[int, int] | None = None,
     ):
         self.height = check_int("height", height, maximum=MAX_IMAGE_SIDE)
         self.width = check_int("width", width, maximum=MAX_IMAGE_SIDE)
         self.tile = check_int("tile", tile)
         self.channels = check_int("channels", channels)
-        if self.tile > min(self.height, self.width):
+        if covered is None and self.tile > min(self.height, self.width):  # a derived coarser scale may be larger
             raise WelchInputError(f"`tile` must not exceed the image size {self.width}x{self.height}, got {self.tile}")
         if info is not None and not isinstance(info, RunInfo):
             raise WelchInputError(f"`info` must be a RunInfo, got {type(info).__name__}")
+        if edges not in EDGES:
+            raise WelchInputError(f"`edges` must be one of {EDGES}, got {edges!r}")
+        self.edges = edges
+        if covered is None:  # the pixels the tiles cover, (rows, columns) from the top left
+            ty, tx = grid_size(self.height, self.width, self.tile, edges)
+            covered = (min(ty * self.tile, self.height), min(tx * self.tile, self.width))
+        self.covered = (int(covered[0]), int(covered[1]))
         self.info = info if info is not None else RunInfo()
         self.seeds: list[int] = []
         # Tile sums of the passes in the first `_count` rows; the capacity doubles as passes arrive.
@@ -213,18 +259,20 @@ class TileStats:
         tile: int,
         info: RunInfo | None = None,
         pixel_sum: np.ndarray | None = None,
+        edges: str = "partial",
+        covered: tuple[int, int] | None = None,
     ) -> TileStats:
         """Statistics built from per-pass tile sums of shape (n, tiles_y, tiles_x, channels): the constructor for
         loaders and derived runs. A C-contiguous float64 array is used as it is (not copied): don't change it
         afterwards.
 
         `pixel_sum`, if given, is the per-pixel sum over the passes (H×W×channels), from which the mean image is
-        shown.
+        shown. `edges` and `covered` say how the tiles meet the image's edges (see `TileStats`).
         """
         sums = np.asarray(sums, dtype=np.float64)
         if sums.ndim != 4:
             raise WelchInputError(f"`sums` must have 4 dimensions (n, tiles_y, tiles_x, channels), got {sums.shape}")
-        out = cls(height, width, tile, sums.shape[-1], info, keep_mean_image=False)
+        out = cls(height, width, tile, sums.shape[-1], info, keep_mean_image=False, edges=edges, covered=covered)
         seeds = _check_seeds(seeds)
         if sums.shape[1:] != out.grid_shape or len(sums) != len(seeds):
             raise WelchInputError(f"`sums` must have shape (n_seeds, {out.grid_shape}), got {sums.shape}")
@@ -243,11 +291,11 @@ class TileStats:
 
     @property
     def tiles_y(self) -> int:
-        return self.height // self.tile
+        return -(-self.covered[0] // self.tile)
 
     @property
     def tiles_x(self) -> int:
-        return self.width // self.tile
+        return -(-self.covered[1] // self.tile)
 
     @property
     def grid_shape(self) -> tuple[int, int, int]:
@@ -255,8 +303,14 @@ class TileStats:
 
     @property
     def dropped_pixels(self) -> int:
-        """Pixels in the incomplete right and bottom tiles, which are not tested."""
-        return self.height * self.width - self.tiles_y * self.tiles_x * self.tile**2
+        """Pixels no tile covers, which are not tested: the incomplete edge tiles of a file written before partial
+        tiles (0 for every run made now)."""
+        return self.height * self.width - self.covered[0] * self.covered[1]
+
+    def tile_box(self, row: int, col: int) -> tuple[int, int, int, int]:
+        """The pixels of tile (`row`, `col`): x, y, width, height (smaller at a partial edge)."""
+        x, y = int(col) * self.tile, int(row) * self.tile
+        return x, y, min(self.tile, self.covered[1] - x), min(self.tile, self.covered[0] - y)
 
     # -- the data and what derives from it -----------------------------------------------------------------
 
@@ -332,6 +386,11 @@ class TileStats:
             raise GridMismatchError(
                 f"statistics have different grids (width, height, tile, channels): {mine} against {theirs}"
             )
+        if self.covered != other.covered:
+            raise GridMismatchError(
+                f"statistics cover different parts of the image: {self.covered[1]}x{self.covered[0]} pixels against "
+                f"{other.covered[1]}x{other.covered[0]} (a file written before partial edge tiles: render it again)"
+            )
 
     def same_run(self, other: TileStats, action: str = "merge") -> None:
         """Raise unless `other` is the same configuration (grid and every identity field of RunInfo)."""
@@ -362,7 +421,7 @@ class TileStats:
                 f"`image` must be {self.height}x{self.width} (height x width) like the run, "
                 f"got {image.shape[0]}x{image.shape[1]}"
             )
-        sums = tile_sums(image, self.tile, self.channels)
+        sums = tile_sums(image, self.tile, self.channels, self.edges)
         if not allow_nonfinite and not np.isfinite(sums).all():
             bad = int((~np.isfinite(image[..., : self.channels])).sum())
             raise WelchInputError(f"pass with seed {seed} has {bad} non-finite pixel values")
@@ -423,6 +482,8 @@ class TileStats:
             self.tile,
             self.info,
             pixel_sum,
+            self.edges,
+            self.covered,
         )
 
     # -- derived runs --------------------------------------------------------------------------------------
@@ -435,19 +496,50 @@ class TileStats:
         ):
             raise WelchInputError(f"`indices` must be distinct positions in 0..{self._count - 1}")
         seeds = [self.seeds[i] for i in indices]
-        return TileStats.from_sums(self.sums[indices], seeds, self.height, self.width, self.tile, self.info)
+        return TileStats.from_sums(
+            self.sums[indices],
+            seeds,
+            self.height,
+            self.width,
+            self.tile,
+            self.info,
+            edges=self.edges,
+            covered=self.covered,
+        )
 
     def retile(self, factor: int) -> TileStats:
         """The statistics at tile size `tile * factor`, from the stored per-pass sums (no re-rendering); the mean
         image is not kept."""
         factor = check_int("factor", factor)
         tile = self.tile * factor
-        if tile > min(self.height, self.width):
+        if factor > 1 and max(self.tiles_y, self.tiles_x) <= factor // 2:  # half the factor covers it all already
             raise WelchInputError(f"`factor` {factor} makes tiles larger than the image")
-        ty, tx = self.height // tile, self.width // tile
-        sums = self.sums[:, : ty * factor, : tx * factor]
-        sums = sums.reshape(self._count, ty, factor, tx, factor, self.channels).sum(axis=(2, 4))
-        return TileStats.from_sums(sums, self.seeds, self.height, self.width, tile, self.info)
+        # Blocks of factor x factor stored tiles; the last row and column of blocks are partial where the factor
+        # does not divide the grid: they sum the stored tiles there are, so the coarse grid covers what the stored
+        # one does.
+        n, f, c = self._count, factor, self.channels
+        ty, tx = self.tiles_y // f, self.tiles_x // f  # complete blocks
+        sums = np.zeros((n, -(-self.tiles_y // f), -(-self.tiles_x // f), c))
+        stored = self.sums
+        sums[:, :ty, :tx] = stored[:, : ty * f, : tx * f].reshape(n, ty, f, tx, f, c).sum(axis=(2, 4))
+        if self.tiles_x % f and ty:  # the partial column of blocks
+            sums[:, :ty, tx] = stored[:, : ty * f, tx * f :].reshape(n, ty, f, -1, c).sum(axis=(2, 3))
+        if self.tiles_y % f:  # the partial row of blocks, the corner with it
+            strip = stored[:, ty * f :].sum(axis=1)  # (n, tiles_x, c)
+            columns = np.zeros((n, sums.shape[2] * f, c))
+            columns[:, : self.tiles_x] = strip
+            sums[:, ty] = columns.reshape(n, sums.shape[2], f, c).sum(axis=2)
+        return TileStats.from_sums(
+            sums, self.seeds, self.height, self.width, tile, self.info, edges=self.edges, covered=self.covered
+        )
+
+    def whole(self) -> TileStats:
+        """The whole image as one Welch sample a pass: every tile and channel summed (one tile, one channel)."""
+        sums = self.sums.sum(axis=(1, 2, 3)).reshape(self._count, 1, 1, 1)
+        tile = max(self.covered)
+        return TileStats.from_sums(
+            sums, self.seeds, self.height, self.width, tile, self.info, edges=self.edges, covered=self.covered
+        )
 
     def __repr__(self) -> str:
         return (

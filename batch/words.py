@@ -1,0 +1,212 @@
+"""The words of a verdict: the sentence every presenter shows (the command line, report.html, JUnit, the
+dashboard, the Blender panel), written from the outcome's JSON (`welch_core.Outcome.to_json`, report.json's
+``outcome``) and nothing else, so that every place that shows a verdict says the same with the same numbers.
+
+Nothing here decides: the verdict and each number come from the outcome; these functions only choose words.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from . import fmt
+
+
+def where(d: dict[str, Any]) -> str:
+    """'R of the 16x16 tile at x 32, y 48' (its true size at a partial edge)."""
+    size = (
+        f"{d['tile']}x{d['tile']}"
+        if (d["width"], d["height"]) == (d["tile"], d["tile"])
+        else (f"{d['width']}x{d['height']} (edge)")
+    )
+    return f"{d['channel']} of the {size} tile at x {d['x']}, y {d['y']}"
+
+
+def whole_image(outcome: dict[str, Any]) -> str | None:
+    """'whole image +0.91 % [+0.45 %, +1.37 %]' or None where it has no estimate."""
+    d = outcome.get("whole_image")
+    if d is None or d["estimate"] is None:
+        return None
+    return f"whole image {fmt.difference(d)}"
+
+
+def box(b: dict[str, int] | None) -> str:
+    return "" if b is None else f"x {b['x']}..{b['x'] + b['width']}, y {b['y']}..{b['y'] + b['height']}"
+
+
+def claim_scale(outcome: dict[str, Any]) -> dict[str, Any] | None:
+    return next((s for s in outcome["scales"] if s["tile"] == outcome["claim_tile"]), None)
+
+
+def ruled_out_list(outcome: dict[str, Any]) -> str:
+    """'16: 2.10 %, 32: 1.20 %, 64: —' : the bias ruled out at each tile size."""
+    return ", ".join(f"{s['tile']}: {fmt.magnitude(s['ruled_out'])}" for s in outcome["scales"])
+
+
+def _tolerance(outcome: dict[str, Any]) -> str:
+    return fmt.magnitude(outcome["tolerance"])
+
+
+def _identical_share(outcome: dict[str, Any]) -> str:
+    return f"a change that alters one pass in ten would have shown ({1 - outcome['alpha']:.0%})"
+
+
+def sentence(outcome: dict[str, Any]) -> str:
+    """The verdict in one sentence, its own word first: what it claims, at which scale, with its numbers."""
+    text, reason = outcome["verdict_text"], outcome["reason"]
+    whole = whole_image(outcome)
+    n = min(outcome["n_ref"], outcome["n_test"])
+    if reason == "deterministic":
+        return f"{text}: {outcome['deterministic']} tile-channels are constant on both sides but differ"
+    if reason == "identical":
+        return f"{text}: all {n} passes are identical on both sides; {_identical_share(outcome)}"
+    if reason == "identical_too_few":
+        return (
+            f"{text}: all {n} passes are identical on both sides so far; {outcome['identical_needed']} identical "
+            "passes would rule out a change that alters one pass in ten"
+        )
+    parts = []
+    if reason == "bounded":
+        claim = claim_scale(outcome)
+        tile = claim["tile"]
+        parts.append(
+            f"{text} within ±{_tolerance(outcome)} in every {tile}x{tile} tile (a bias beyond "
+            f"{fmt.magnitude(claim['ruled_out'])} is ruled out there)"
+        )
+        finest = outcome["scales"][0]
+        if finest["tile"] != tile:
+            parts.append(
+                f"in {finest['tile']}x{finest['tile']} tiles a bias up to {fmt.magnitude(finest['ruled_out'])} is "
+                "not ruled out"
+            )
+    elif reason == "significant":
+        top = outcome["most_significant"]
+        claim = f"{text}: {whole}" if whole else text
+        parts.append(claim)
+        if top is not None:
+            parts.append(f"most significant {fmt.difference(top)} in {where(top)} (p {fmt.p_value(top['p_value'])})")
+        whole = None
+    elif reason == "spread":
+        parts.append(f"{text}: a difference spread over many tiles (too many small p-values)")
+    elif reason in ("unbounded", "beyond"):
+        claim = claim_scale(outcome)
+        tile = claim["tile"]
+        first = f"{text}: not shown within ±{_tolerance(outcome)} in every {tile}x{tile} tile"
+        if reason == "beyond":
+            first += " (a finer tile found biased differs by more than that)"
+        parts.append(first)
+        if n < outcome["identical_needed"]:
+            parts.append(f"equivalence needs {outcome['identical_needed']} passes a side, {n} so far")
+        elif claim["tiles"] - claim["bounded"]:
+            open_ = f"{claim['tiles'] - claim['bounded']} of {claim['tiles']} tiles not bounded"
+            if claim["unbounded_box"] is not None and claim["bounded"]:
+                open_ += f" ({box(claim['unbounded_box'])})"
+            if claim["passes_needed"] is not None:
+                open_ += f"; about {claim['passes_needed']} passes a side would bound them"
+            parts.append(open_)
+        parts.append(f"bias ruled out per tile size: {ruled_out_list(outcome)}")
+    elif reason == "undecided":
+        parts.append(f"undecided after {n} passes a side")
+    elif reason == "untestable":
+        parts.append(f"{text}: no tile can be tested (too few passes, constant images or non-finite values)")
+    elif reason == "too_untested":
+        region = box(outcome["untestable_box"])
+        parts.append(
+            f"{text}: the Welch samples of {outcome['untestable']} tiles ({region}) are clearly not normal at every "
+            "tile size (fireflies or caustics): too much of the image can't be tested"
+        )
+    else:  # nothing found
+        detectable = outcome["min_detectable"]
+        finest = outcome["scales"][0]["tile"]
+        found = (
+            f": a bias of {fmt.magnitude(detectable)} in a {finest}x{finest} tile would have been found with 80 % power"
+            if detectable is not None
+            else ""
+        )
+        parts.append(f"{text}{found}")
+    if whole:
+        parts.append(whole)
+    return "; ".join(parts)
+
+
+def method(outcome: dict[str, Any], pvalue_method: str = "exact") -> str:
+    """How the verdict was reached, in a sentence."""
+    name = "paired t-test on per-pass differences" if outcome["test"] == "paired" else "Welch's t-test"
+    sizes = ", ".join(str(s["tile"]) for s in outcome["scales"])
+    if outcome["design"] == "sequential":
+        text = (
+            f"{name} per tile and channel at tile sizes {sizes}, looked at after every chunk of passes: each "
+            f"tile-channel of each size its Bonferroni share of alpha {outcome['alpha']:g}, spent over the looks "
+            "(Pocock); Welch's t with n - 1 degrees of freedom"
+        )
+    else:
+        text = (
+            f"{name} per tile and channel (p: {pvalue_method}) at tile sizes {sizes}; channels combined by "
+            "Bonferroni; the tiles of a size by Holm and a one-sided Kolmogorov-Smirnov test of uniformity, "
+            "Bonferroni-combined; the sizes by Bonferroni"
+        )
+    if outcome["tolerance"] is not None:
+        tile = outcome["claim_tile"]
+        level = 1 - 2 * outcome["alpha"]
+        text += (
+            f"; equivalent: every tile-channel of the {tile}x{tile} tiles has its {level:.0%} interval inside "
+            f"±{_tolerance(outcome)} (an intersection-union test at {outcome['alpha']:g}"
+            + (", the intervals repeated over the looks)" if outcome["design"] == "sequential" else ")")
+        )
+    return text
+
+
+def next_step(outcome: dict[str, Any], check: bool = False) -> str:
+    """What to do with this verdict, in a sentence or two."""
+    reason = outcome["reason"]
+    more = (
+        "run the same check again with a larger --max-passes and --resume: the looks already made keep their boundaries"
+        if check
+        else "render more passes into both runs (the same render commands with --resume and more seeds), then "
+        "compare again, or let `python -m batch check` render until it decides"
+    )
+    if reason in ("significant", "spread", "deterministic"):
+        top = outcome["most_significant"]
+        located = f" The most significant difference is in {where(top)}." if top else ""
+        return (
+            "The two do not converge to the same image." + located + " Look at the recorded differences and the "
+            "tiles outlined in the map; a difference you expected (a setting changed on purpose) confirms the test "
+            "works."
+        )
+    if reason == "bounded":
+        claim = claim_scale(outcome)
+        return (
+            f"Nothing to do: every {claim['tile']}x{claim['tile']} tile is within ±{_tolerance(outcome)} of the "
+            "reference."
+        )
+    if reason == "identical":
+        return "Nothing to do: the change leaves every pass as it was."
+    if reason == "identical_too_few":
+        return (
+            f"Render at least {outcome['identical_needed']} passes a side to rule out a rarely visible change: {more}."
+        )
+    if reason in ("unbounded", "beyond"):
+        claim = claim_scale(outcome)
+        need = claim["passes_needed"]
+        if need is not None:
+            return f"To bound every tile within the tolerance, about {need} passes a side are needed: {more}."
+        return (
+            "More passes alone may not bound every tile (an estimate beyond the tolerance, or tiles whose samples "
+            f"are not normal): look at the tiles not bounded, or give a coarser --equivalence-tile; or {more}."
+        )
+    if reason == "untestable":
+        return f"No tile could be tested (too few passes, or constant images): {more}."
+    if reason == "too_untested":
+        return (
+            f"The Welch samples of {box(outcome['untestable_box'])} are clearly not normal (fireflies or caustics) at "
+            "every tile size, so that part can't be tested yet: more samples per pass (--spp) make each pass's tile "
+            f"sums more normal; or {more}."
+        )
+    if reason == "undecided":
+        return f"Not decided yet: {more}."
+    detectable = outcome["min_detectable"]
+    smaller = f"a bias below {fmt.magnitude(detectable)} per tile" if detectable is not None else "a small bias"
+    return (
+        f"No bias was found, but {smaller} could still hide: to rule it out, {more}; with --tolerance the verdict "
+        "says whether the two are equivalent within it."
+    )
