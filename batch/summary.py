@@ -241,8 +241,10 @@ def differences(ref: wc.RunInfo, test: wc.RunInfo) -> tuple[list[str], list[str]
     for key in sorted(set(ref.settings) | set(test.settings)):
         a, b = ref.settings.get(key), test.settings.get(key)
         if a != b and not (key == "cycles.sampling_pattern" and ref.sampling_pattern != test.sampling_pattern):
-            line = f"{_setting_name(key)}: {_setting_value(a)} → {_setting_value(b)}"
-            (noise if key in NOISE_ONLY else image).append(line)
+            a, b = (
+                _setting_value(v) if key in run.settings else "not in this build" for v, run in ((a, ref), (b, test))
+            )
+            (noise if key in NOISE_ONLY else image).append(f"{_setting_name(key)}: {a} → {b}")
     if ref.overrides != test.overrides:
         for side, overrides in (("reference", ref.overrides), ("test", test.overrides)):
             if overrides:

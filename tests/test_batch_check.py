@@ -64,8 +64,8 @@ def test_a_planted_bias_stops_early_as_biased(tmp_path):
 @pytest.mark.slow
 def test_an_aa_check_ends_equivalent_without_choosing_n(tmp_path):
     done = check(*SMALL, "--unpaired", "--out", tmp_path, expect=0)
-    assert done.stdout.startswith("verdict: equivalent within the tolerance (alpha 0.01, welch test, after ")
-    assert "the test converges to the reference within ±1.00 % in every" in done.stdout
+    assert done.stdout.startswith("verdict: equivalent within ±1.00 % in every 16x16 tile (a bias beyond ")
+    assert "\n  alpha 0.01, welch test, " in done.stdout
     state = json.loads((tmp_path / "check.json").read_text())
     assert state["looks"][-1]["verdict"] == "equivalent" and state["looks"][-1]["passes"] < 512
 
@@ -73,8 +73,8 @@ def test_an_aa_check_ends_equivalent_without_choosing_n(tmp_path):
 @pytest.mark.slow
 def test_the_budget_ends_inconclusive_with_the_bias_it_rules_out(tmp_path):
     done = check(*SMALL, "--unpaired", "--tolerance", "0.01%", "--max-passes", 6, "--out", tmp_path, expect=3)
-    assert "verdict: inconclusive" in done.stdout
-    assert "the budget is spent before a decision: a bias beyond " in done.stdout
+    assert "verdict: inconclusive: not shown within ±0.01 % in every 16x16 tile" in done.stdout
+    assert "bias ruled out per tile size: 16: —, 32: —, 64: —" in done.stdout  # 6 passes bound nothing
     assert wc.load_stats(tmp_path / "reference.npz").n == 6
 
 

@@ -207,7 +207,7 @@ def test_run_passes_then_names_the_planted_change_and_skips_a_missing_device(ble
     assert "failed: walls [CPU], mirror [CPU]" in done.stdout
     summary = json.loads((tmp_path / "planted" / "summary.json").read_text())
     assert {c["verdict"] for c in summary["cases"]} == {"biased"}
-    assert summary["cases"][0]["largest_effect"]["rel_diff"] > 0.1
+    assert summary["cases"][0]["largest"]["estimate"] > 0.1 and summary["cases"][0]["whole_image"]["low"] > 0.05
 
     done = batch("suite", "run", path, "--refs", refs, "--out", tmp_path / "gpu", "--device", "OPTIX",
                  "--filter", "walls", check=0)  # fmt: skip

@@ -128,9 +128,9 @@ def test_differences_as_a_person_writes_them_split_by_what_they_change():
     image, noise = summary.differences(a, b)
     assert image == [
         "spp: 4 → 8",
-        "clamp: 0.0 → unset",
+        "clamp: 0.0 → not in this build",
         "max_bounces: 12 → 2",
-        "denoise: unset → on",
+        "denoise: not in this build → on",
         "overrides of the reference side: x=1",
     ]
     assert noise == [] and summary.differences(a, a) == ([], [])
@@ -139,7 +139,7 @@ def test_differences_as_a_person_writes_them_split_by_what_they_change():
                     sampling_pattern="TABULATED_SOBOL", settings={"cycles.use_light_tree": True})  # fmt: skip
     image, noise = summary.differences(built, other)
     assert image == ["renderer_version: 3.4.1 → 5.0.1", "build_hash: Unknown → a3db93c5b259"]
-    assert noise == ["sampling_pattern: SOBOL → TABULATED_SOBOL", "use_light_tree: unset → on"]
+    assert noise == ["sampling_pattern: SOBOL → TABULATED_SOBOL", "use_light_tree: not in this build → on"]
 
 
 def test_sides_are_named_by_what_differs():

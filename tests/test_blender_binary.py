@@ -108,7 +108,10 @@ def test_cycles_34_against_cycles_50(tmp_path, scene, verdict):
     done = batch("compare", tmp_path / "b34.npz", tmp_path / "b50.npz", "--out", tmp_path / "report")
     report = json.loads((tmp_path / "report" / "report.json").read_text())
     assert report["verdict"] == verdict, done.stdout
-    assert "renderer_version: '3.4.1' -> '5.0.1'" in report["differences"]
+    assert "renderer_version: 3.4.1 → 5.0.1" in report["differences"]
+    assert report["reference"]["name"].startswith("Cycles 3.4.1") and report["test_run"]["name"].startswith(
+        "Cycles 5.0"
+    )
     if verdict == "biased":
         assert done.returncode == 1
         for tile in report["top_tiles"]:

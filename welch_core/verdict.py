@@ -16,7 +16,7 @@ class Verdict(enum.StrEnum):
     """
 
     BIASED = ("biased", 1, "biased", "Biased", "ERROR")
-    EQUIVALENT = ("equivalent", 0, "equivalent within the tolerance", "Equivalent", "CHECKMARK")
+    EQUIVALENT = ("equivalent", 0, "equivalent", "Equivalent", "CHECKMARK")
     NO_EVIDENCE = ("no_evidence", 0, "no evidence of bias", "No Evidence of Bias", "CHECKMARK")
     INCONCLUSIVE = ("inconclusive", 3, "inconclusive", "Inconclusive", "QUESTION")
 
