@@ -41,7 +41,7 @@ import bpy
 import numpy as np
 
 import welch_core as wc
-from batch import render, scenes
+from batch.blender import render, scenes
 from welch_core.effect import relative_interval
 
 from .cache import REPO

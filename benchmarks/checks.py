@@ -1,8 +1,8 @@
-"""Simulated runs of ``python -m batch check`` on pools: the passes a side come in a random order of the pool's
-seeds, and `welch_core.sequential_look` decides at every look of `welch_core.look_schedule`, as `batch.check.Check`
-does after each chunk (the fraction of a look is its passes over the budget; `biased` or `equivalent` stop the
-run; at the budget it ends `inconclusive`, or `no_evidence` without a tolerance). Nothing renders: a run costs a
-few milliseconds a look.
+"""Simulated runs of ``python -m batch check`` on pools: the passes a side come in a random order of the pool's seeds,
+and `welch_core.sequential_look` decides at every look of `welch_core.look_schedule`, as `batch.decide.check.Check` does
+after each chunk (the fraction of a look is its passes over the budget; `biased` or `equivalent` stop the run; at the
+budget it ends `inconclusive`, or `no_evidence` without a tolerance). Nothing renders: a run costs a few milliseconds a
+look.
 
 Paired runs take the same seeds on both sides (what `check` does on one build), unpaired runs take the reference's
 passes from one half of the seeds and the test's from the other (two builds, or ``--unpaired``). The budget is the
@@ -23,7 +23,7 @@ from .trials import ALPHA, BASE_TILE
 #: Part of the cache key of simulated runs, with welch_core's source.
 CHECKS_VERSION = 2
 
-#: `check`'s defaults (batch.cli / batch.check): alpha 1 %, tolerance 1 %, finest tile 16 px.
+#: `check`'s defaults (batch.cli / batch.decide.check): alpha 1 %, tolerance 1 %, finest tile 16 px.
 TOLERANCE = 0.01
 
 

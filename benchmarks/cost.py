@@ -28,8 +28,8 @@ GRIDS = {16: (4, 4), 64: (8, 8), 256: (16, 16), 1024: (32, 32), 4096: (64, 64), 
 
 
 def _scene(resolution: int, scene: str = "corner"):
-    from batch.job import RenderJob
-    from batch.run import prepare_scene
+    from batch.blender.run import prepare_scene
+    from batch.jobs.job import RenderJob
 
     job = RenderJob(out="", seeds=[0], spp=1, scene=scene, resolution=(resolution, resolution))
     return prepare_scene(job)
@@ -37,7 +37,7 @@ def _scene(resolution: int, scene: str = "corner"):
 
 def pass_cost(resolutions, passes: int) -> list[dict]:
     """Median seconds per pass (render call, EXR write + read, accumulation) per resolution, corner, 1 spp."""
-    from batch.render import PassRenderer
+    from batch.blender.render import PassRenderer
 
     rows = []
     for res in resolutions:
@@ -59,9 +59,9 @@ def pass_cost(resolutions, passes: int) -> list[dict]:
 
 
 def verdict_cost(pool, ns) -> list[dict]:
-    """Seconds of `compare` and of writing the report (batch.report) against passes a side, 32² tiles."""
-    from batch.report import write_report
-    from batch.summary import summarize
+    """Seconds of `compare` and of writing the report (batch.present.report) against passes a side, 32² tiles."""
+    from batch.present.report import write_report
+    from batch.present.summary import summarize
 
     rows = []
     for n in ns:
@@ -100,7 +100,7 @@ def overhead(passes: int, resolution: int = 256) -> dict:
     """The pipeline (re-seed, render, write, read, accumulate) against the bare render call, interleaved."""
     import bpy
 
-    from batch.render import PassRenderer
+    from batch.blender.render import PassRenderer
 
     with quiet_stdout():
         scene, info = _scene(resolution)
@@ -132,7 +132,7 @@ def persistent_speedup(subdivisions: int, passes: int, resolution: int = 64) -> 
     import bmesh
     import bpy
 
-    from batch.render import PassRenderer
+    from batch.blender.render import PassRenderer
 
     with quiet_stdout():
         scene, _info = _scene(resolution)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-from batch.scenes import LIGHT_ENERGY, LIGHT_ENERGY_PATH, WALL_COLOR_PATH
+from batch.blender.scenes import LIGHT_ENERGY, LIGHT_ENERGY_PATH, WALL_COLOR_PATH
 
 from .pools import PoolSpec
 

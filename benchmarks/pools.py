@@ -53,10 +53,10 @@ class PoolSpec:
 
 @functools.cache
 def _scenes_digest() -> str:
-    """The built-in scenes' identity, as the batch tool records it in a run: `batch.scenes.BUILDER_VERSION`, which
-    is raised whenever a builder changes what it builds (read from the source, without importing bpy; once per
+    """The built-in scenes' identity, as the batch tool records it in a run: `batch.blender.scenes.BUILDER_VERSION`,
+    which is raised whenever a builder changes what it builds (read from the source, without importing bpy; once per
     process, so a run's pools keep their keys while the file is edited). Adding a scene renders nothing again."""
-    source = (Path(__file__).resolve().parent.parent / "batch" / "scenes.py").read_text()
+    source = (Path(__file__).resolve().parent.parent / "batch" / "blender" / "scenes.py").read_text()
     found = re.search(r"^BUILDER_VERSION\s*=\s*(\d+)", source, re.MULTILINE)
     return digest("builder", found.group(1) if found else source)
 
@@ -119,10 +119,11 @@ def load_or_render(spec: PoolSpec, cache_dir: Path, label: str = "") -> Pool:
 
 
 def render_pool(spec: PoolSpec, folder: Path, label: str = "") -> None:
-    """Render every pass of `spec` with `batch.run.prepare_scene` and `batch.render.PassRenderer`; store them."""
-    from batch.job import RenderJob
-    from batch.render import PassRenderer
-    from batch.run import prepare_scene
+    """Render every pass of `spec` with `batch.blender.run.prepare_scene` and `batch.blender.render.PassRenderer`;
+    store them."""
+    from batch.blender.render import PassRenderer
+    from batch.blender.run import prepare_scene
+    from batch.jobs.job import RenderJob
 
     job = RenderJob(
         out=os.devnull,

@@ -103,7 +103,7 @@ def bench_compare(repeats: int = 7) -> None:
 def _bpy_modules():
     import bpy
 
-    from batch import render, scenes
+    from batch.blender import render, scenes
 
     return bpy, render, scenes
 
@@ -118,8 +118,8 @@ def bench_passes() -> None:
 def pass_times(size: int, passes: int = 24, blocks: int = 3) -> tuple[float, float]:
     """Median seconds per pass of the bare render and of the pipeline, in alternating blocks of `passes`."""
     bpy, render, scenes = _bpy_modules()
-    from batch.progress import Progress
-    from batch.run import render_passes
+    from batch.blender.run import render_passes
+    from batch.present.progress import Progress
 
     seeds = iter(range(10**6))
     scene = scenes.build_scene("corner")
@@ -154,9 +154,9 @@ def pass_times(size: int, passes: int = 24, blocks: int = 3) -> tuple[float, flo
 def bench_lobes(passes: int = 24, blocks: int = 3) -> None:
     print("lobes: a pass with every light component (--lobes all) against a plain pass (glossy scene, 1 spp)")
     bpy, render, scenes = _bpy_modules()
-    from batch.lobes import COMPONENTS
-    from batch.progress import Progress
-    from batch.run import render_passes
+    from batch.blender.run import render_passes
+    from batch.jobs.lobes import COMPONENTS
+    from batch.present.progress import Progress
 
     for size in (128, 256):
         timed = {}
@@ -235,8 +235,8 @@ def bench_reseed(renders: int = 8) -> None:
 
 def bench_report(repeats: int = 5) -> None:
     print("report: writing the demo's report (128x128, 16x16 tiles, 32 passes a side)")
-    from batch import summary
-    from batch.report import write_report
+    from batch.present import summary
+    from batch.present.report import write_report
 
     rng = np.random.default_rng(3)
     size, tile = 128, 16

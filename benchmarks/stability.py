@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 import welch_core as wc
-from batch.summary import notes
+from batch.present.summary import notes
 
 from . import checks, plan, trials
 from .cache import digest, memo_json, welch_digest

@@ -19,8 +19,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-from batch import suite as suites
-from batch.progress import Progress
+from batch.decide import suite as suites
+from batch.present.progress import Progress
 
 
 def run_case(suite, case, refs: Path, out: Path, planted: bool, repeat: int) -> suites.Outcome:

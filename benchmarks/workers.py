@@ -34,10 +34,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from batch.distributed import PassPool, default_chunk, local_threads
-from batch.job import RenderJob
-from batch.launch import run_job
-from batch.progress import Progress
+from batch.jobs.distributed import PassPool, default_chunk, local_threads
+from batch.jobs.job import RenderJob
+from batch.jobs.launch import run_job
+from batch.present.progress import Progress
 
 REPO = Path(__file__).resolve().parent.parent
 MACHINES = (1, 2, 4, 8, 16, 64)

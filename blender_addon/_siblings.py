@@ -1,27 +1,45 @@
-"""The sibling packages ``welch_core`` and ``batch``, and the add-on's module name, wherever this package sits.
-
-Inside the extension this package is ``bl_ext.<repository>.<id>.blender_addon`` and the add-on Blender knows is its
-parent; pytest imports it top-level from the repository, where the add-on is this package itself. Only the light
-modules of ``batch`` are imported here (no bpy rendering code, no scipy): registering must stay instant.
+"""What the add-on uses of the sibling packages ``welch_core`` and ``batch``, imported here with plain imports so
+its dependencies show in one place: relative inside the extension (this package is
+``bl_ext.<repository>.<id>.blender_addon``, and the add-on Blender knows is its parent), top-level from the
+repository, where pytest imports this package on its own. Only light modules are imported at registration (no
+bpy rendering code, no scipy): `presenting` imports what makes a result, when one is made.
 """
 
-import importlib
+try:
+    from .. import welch_core
+    from ..batch import errors
+    from ..batch.jobs import job, launch, lobes, overrides, protocol, rna, seeds
+    from ..batch.present import fmt
+except ImportError:  # top-level from the repository: there is no parent package
+    import welch_core
+    from batch import errors
+    from batch.jobs import job, launch, lobes, overrides, protocol, rna, seeds
+    from batch.present import fmt
 
-if "." in __package__:  # inside the extension: welch_core and batch are sibling packages
-    _PARENT = __package__.rpartition(".")[0]
-    ADDON_MODULE = _PARENT
-else:  # imported top-level from the repository (tests)
-    _PARENT = ""
-    ADDON_MODULE = __package__
+#: The add-on's module name as Blender knows it (the extension's root package, or this package in tests).
+ADDON_MODULE = __package__.rpartition(".")[0] or __package__
 
 
-def _sibling(name: str):
-    return importlib.import_module(f"{_PARENT}.{name}" if _PARENT else name)
+def presenting():
+    """The summary of a comparison (batch.present.summary), imported when a result is made."""
+    try:
+        from ..batch.present import summary
+    except ImportError:
+        from batch.present import summary
+    return summary
 
 
-welch_core = _sibling("welch_core")
-batch = _sibling("batch")
-for _module in ("errors", "events", "fmt", "job", "launch", "overrides", "rna", "seeds"):
-    _sibling(f"batch.{_module}")  # makes batch.<module> an attribute of batch
-
-__all__ = ["ADDON_MODULE", "batch", "welch_core"]
+__all__ = [
+    "ADDON_MODULE",
+    "errors",
+    "fmt",
+    "job",
+    "launch",
+    "lobes",
+    "overrides",
+    "presenting",
+    "protocol",
+    "rna",
+    "seeds",
+    "welch_core",
+]

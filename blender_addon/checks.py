@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import os
 
-from ._siblings import batch
+from ._siblings import overrides, rna
 
-render_size = batch.rna.render_size
+render_size = rna.render_size
 
 
 def scene_problems(scene, tile: int, label: str) -> list[str]:
@@ -30,7 +30,7 @@ def override_problems(texts: list[str]) -> list[str]:
     problems = []
     for text in texts:
         try:
-            batch.overrides.parse_override(text)
+            overrides.parse_override(text)
         except ValueError as ex:
             reason = " ".join(str(ex).split()).removeprefix(f"--set {text}: ")
             problems.append(f"Override '{text}': {reason}")

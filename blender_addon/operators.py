@@ -12,7 +12,7 @@ from bpy.app.handlers import persistent
 from bpy.props import BoolProperty, IntProperty, StringProperty
 
 from . import checks, overlay, results, runner, session
-from ._siblings import batch, welch_core
+from ._siblings import errors, fmt, welch_core
 from .state import current
 
 TIMER_SECONDS = 0.25
@@ -30,7 +30,7 @@ def compare_and_show(context, reference_path: str, test_path: str, alpha: float)
 
 
 def verdict_message(summary: dict) -> str:
-    return f"{summary['verdict_title']} (alpha {summary['alpha']:g}, global p {batch.fmt.p_value(summary['p_value'])})"
+    return f"{summary['verdict_title']} (alpha {summary['alpha']:g}, global p {fmt.p_value(summary['p_value'])})"
 
 
 def tag_redraw(context) -> None:
@@ -82,7 +82,7 @@ class WELCH_BIAS_OT_run(bpy.types.Operator):
             return self._compare_files(context, settings)
         try:
             session.start(context, settings, self.resume)
-        except (OSError, RuntimeError, ValueError, batch.errors.BatchError) as ex:
+        except (OSError, RuntimeError, ValueError, errors.BatchError) as ex:
             return self._fail(f"Could not start the run: {ex}")
         return "SESSION"
 
@@ -96,7 +96,7 @@ class WELCH_BIAS_OT_run(bpy.types.Operator):
         return "FINISHED"
 
     def _fail(self, message: str) -> str:
-        current.last_error = batch.fmt.one_line(message)
+        current.last_error = fmt.one_line(message)
         self.report({"ERROR"}, current.last_error)
         return "CANCELLED"
 

@@ -14,8 +14,13 @@ from dataclasses import dataclass
 
 import bpy
 
-from ._siblings import batch, welch_core
+from ._siblings import fmt, rna, welch_core
 from .state import current
+
+IMAGE_TAG = "welch_bias_result"  # custom property marking the result images this add-on may overwrite
+#: The panel's map modes as welch_core.colormap's, and its channel names as indices.
+CORE_MAP_MODES = {"MIN": "min", "CHANNEL": "channel", "SQRT": "sqrt", "LOG10": "log10", "Q": "q", "SIGNIFICANT": "min"}
+CHANNEL_INDEX = {"R": 0, "G": 1, "B": 2}
 
 OUTLINE_COLORS = ((0.0, 0.0, 0.0, 1.0), (1.0, 1.0, 1.0, 1.0))  # a dark line under a light one: visible on any tile
 OUTLINE_WIDTHS = (3.0, 1.0)  # pixels
@@ -72,8 +77,6 @@ def tile_geometry(comparison, map_mode: str, channel: str, opacity: float) -> Ge
     settings' identifiers)."""
     import numpy as np
 
-    from .results import CHANNEL_INDEX, CORE_MAP_MODES
-
     tiles_y, tiles_x = comparison.tile_pvalues.shape
     rects = tile_rects(tiles_y, tiles_x, comparison.tile, comparison.width, comparison.height)
     rgb = welch_core.pvalue_rgb(comparison, mode=CORE_MAP_MODES[map_mode], channel=CHANNEL_INDEX.get(channel))
@@ -92,12 +95,11 @@ def tile_geometry(comparison, map_mode: str, channel: str, opacity: float) -> Ge
 def covers(image, geometry: Geometry, scene) -> bool:
     """Whether the overlay belongs over ``image``: one of the compared width/height ratio (the Render Result, a
     saved render, the mean image), except the map image, whose pixels carry the map already."""
-    from .results import IMAGE_TAG
 
     if image is None or image.get(IMAGE_TAG):
         return False
     if image.type == "RENDER_RESULT":
-        width, height = batch.rna.render_size(scene)  # its own size reads 0 x 0 from Python (3.4 and 5.0)
+        width, height = rna.render_size(scene)  # its own size reads 0 x 0 from Python (3.4 and 5.0)
     else:
         width, height = image.size
     if width == 0 or height == 0:
@@ -202,7 +204,7 @@ def draw() -> None:
     try:
         _draw(geometry, context.region)
     except Exception as ex:  # a failing draw handler would raise again on every redraw of every editor
-        current.overlay_error = batch.fmt.one_line(f"{type(ex).__name__}: {ex}")
+        current.overlay_error = fmt.one_line(f"{type(ex).__name__}: {ex}")
         print(f"Welch Bias Test: the overlay can't be drawn: {current.overlay_error}")
 
 

@@ -2,32 +2,30 @@
 
 The image is built in numpy with ``welch_core`` (tone-mapped mean render, p-value colours blended over it) and
 written into ``bpy.data.images`` in one ``foreach_set``; `refresh` also renews the overlay's vertices (the map
-drawn over other images, ``overlay.py``). The summary is `batch.summary`'s (the words the command line prints
+drawn over other images, ``overlay.py``). The summary is `batch.present.summary`'s (the words the command line prints
 and the report shows) plus what only the panel needs, so ``draw()`` never computes. numpy, scipy and the
 statistics are imported when a result is made, never when the add-on registers.
 """
 
 from __future__ import annotations
 
-import importlib
-
 import bpy
 
 from . import overlay
-from ._siblings import batch, welch_core
+from ._siblings import presenting, welch_core
+from .overlay import CHANNEL_INDEX, CORE_MAP_MODES, IMAGE_TAG
 from .state import current
 
 IMAGE_NAME = "Welch P-Value Map"
-IMAGE_TAG = "welch_bias_result"  # custom property marking images this add-on may overwrite
+#: Blender icon of each verdict.
+VERDICT_ICONS = {"biased": "ERROR", "equivalent": "CHECKMARK", "no_evidence": "CHECKMARK", "inconclusive": "QUESTION"}
 HISTOGRAM_BINS = 10  # one bar each in the panel
 TOP_TILES_SHOWN = 5
 DIFFERENCES_SHOWN = 8
-CORE_MAP_MODES = {"MIN": "min", "CHANNEL": "channel", "SQRT": "sqrt", "LOG10": "log10", "Q": "q", "SIGNIFICANT": "min"}
-CHANNEL_INDEX = {"R": 0, "G": 1, "B": 2}
 
 
 def _summary_module():
-    return importlib.import_module(".summary", batch.__name__)
+    return presenting()
 
 
 def compare_files(reference_path: str, test_path: str, alpha: float):
@@ -73,7 +71,7 @@ def summarize(comparison, reference, test, sources: dict[str, str]) -> dict:
     bars, expected = histogram_bars(comparison.tile_pvalues[comparison.used])
     summary.update(
         verdict_title=comparison.verdict.title,
-        verdict_icon=comparison.verdict.icon,
+        verdict_icon=VERDICT_ICONS[comparison.verdict],
         histogram=bars,
         histogram_expected=expected,
         top_tiles=summary["top_tiles"][:TOP_TILES_SHOWN],

@@ -1,7 +1,7 @@
 """Render the sides of a comparison as background jobs and follow their progress, without bpy.
 
 The modal operator calls these on a timer: :class:`Session` runs the reference side, then the test side, each
-a `batch.job.RenderJob` started through `batch.launch` (its ``--json-progress`` events read by threads, so the
+a `batch.jobs.job.RenderJob` started through `batch.jobs.launch` (its ``--json-progress`` events read by threads, so the
 UI never blocks on a pipe), and turns their events into one progress fraction, a status line and, on failure,
 a one-line error.
 """
@@ -15,11 +15,9 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ._siblings import batch
+from ._siblings import errors, fmt, job, launch, protocol, seeds
 
-events, fmt, launch = batch.events, batch.fmt, batch.launch
-
-MAX_SEED = batch.seeds.MAX_SEED  # Cycles' seed is a non-negative 32-bit int
+MAX_SEED = seeds.MAX_SEED  # Cycles' seed is a non-negative 32-bit int
 MAX_FIRST_SEED = 2**30  # leaves room for two sides of up to 2**29 passes
 
 RUNNING = "RUNNING"
@@ -48,7 +46,7 @@ class Side:
     """One side of the comparison: its name for people and its render job."""
 
     label: str
-    job: batch.job.RenderJob
+    job: job.RenderJob
 
 
 @dataclass
@@ -75,7 +73,7 @@ class Session:
 
     Call :meth:`poll` regularly (from a timer or a loop): it starts the next side when one finishes and returns
     the state, one of ``RUNNING``, ``FINISHED``, ``FAILED`` or ``CANCELLED``. `commands` default to
-    `batch.launch.job_command` of each side's job. `temporary_files` are deleted when the session finishes.
+    `batch.jobs.launch.job_command` of each side's job. `temporary_files` are deleted when the session finishes.
     """
 
     sides: list[Side]
@@ -136,20 +134,20 @@ class Session:
         self.progress = Progress()
         try:
             self.process = self.launcher(self.commands[self.step])
-        except (OSError, batch.errors.BatchError) as ex:
+        except (OSError, errors.BatchError) as ex:
             self._fail(f"{self.label} run could not start: {ex}")
 
-    def _apply(self, event: events.Event) -> None:
+    def _apply(self, event: protocol.Event) -> None:
         match event:
-            case events.Started(total=total, todo=todo):
+            case protocol.Started(total=total, todo=todo):
                 # A resumed run starts with the passes already in its statistics file.
                 self.progress.total, self.progress.done = total, total - todo
-            case events.PassDone(done=done, total=total, seconds=seconds, eta=eta):
+            case protocol.PassDone(done=done, total=total, seconds=seconds, eta=eta):
                 self.progress.done, self.progress.total = done, total
                 self.progress.seconds, self.progress.eta = seconds, eta
-            case events.Finished(passes=passes):
+            case protocol.Finished(passes=passes):
                 self.progress.done = self.progress.total = max(passes, self.progress.total)
-            case events.Warned(message=message):
+            case protocol.Warned(message=message):
                 self.warnings.append(fmt.one_line(f"{self.label}: {message}"))
 
     def _step_ended(self, code: int) -> None:

@@ -6,7 +6,6 @@ own folder, which both sides render.
 
 from __future__ import annotations
 
-import importlib
 import sys
 import tempfile
 import time
@@ -15,7 +14,8 @@ from pathlib import Path
 import bpy
 
 from . import checks, preferences, runner
-from ._siblings import ADDON_MODULE, batch
+from ._siblings import ADDON_MODULE, launch, lobes
+from ._siblings import job as jobs
 from .state import RunFolder, current
 
 
@@ -84,7 +84,7 @@ def _lobes(settings, scene) -> tuple[str, ...]:
     if not settings.use_lobes:
         return ()
     groups = any(len(getattr(layer, "lightgroups", ())) for layer in scene.view_layers)
-    components = importlib.import_module(".lobes", batch.__name__).COMPONENTS
+    components = lobes.COMPONENTS
     return (*components, "lightgroups") if groups else components
 
 
@@ -101,7 +101,7 @@ def sides(settings, scene, blend: str, folder: Path, resume: bool, blender: str 
         "blender": blender or None,
         "lobes": _lobes(settings, scene),
     }
-    job = batch.job.RenderJob
+    job = jobs.RenderJob
     return [
         runner.Side("Reference", job(out=str(folder / "reference.npz"), seeds=ref_seeds, blend_scene=reference.name,
                                      **common)),
@@ -124,7 +124,7 @@ def start(context, settings, resume: bool) -> runner.Session:
         raise OSError(f"the stopped run's copy of the scene is gone ({blend}): start a new run")
     run_sides = sides(settings, context.scene, str(blend), folder, resume, blender_binary(context))
     paths = extension_wheel_paths()
-    commands = [batch.launch.job_command(side.job, python_paths=paths) for side in run_sides]
+    commands = [launch.job_command(side.job, python_paths=paths) for side in run_sides]
     prefs = preferences.get(context)
     keep = prefs is not None and prefs.keep_temporary_files
     session = runner.Session(run_sides, commands, temporary_files=[] if keep else [str(blend)])

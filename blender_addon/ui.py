@@ -8,11 +8,9 @@ when the run ended. Layout calls that Blender 3.4 lacks (``panel``, ``progress``
 import bpy
 
 from . import runner
-from ._siblings import batch
+from ._siblings import fmt
 from .session import settings_key
 from .state import current
-
-fmt = batch.fmt
 
 BAR_BLOCK = "\u2588"  # a full block: Blender before 4.0 has no progress bar widget, its UI font has this glyph
 BAR_BLOCKS = 12  # blocks of a full bar, which fit half of a narrow sidebar

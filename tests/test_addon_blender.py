@@ -14,8 +14,8 @@ bpy = pytest.importorskip("bpy")
 
 import blender_addon  # noqa: E402
 import welch_core  # noqa: E402
-from batch.job import RenderJob  # noqa: E402
-from batch.launch import Command  # noqa: E402
+from batch.jobs.job import RenderJob  # noqa: E402
+from batch.jobs.launch import Command  # noqa: E402
 from blender_addon import checks, results, runner, session, ui  # noqa: E402
 from blender_addon.state import RunFolder  # noqa: E402
 from blender_addon.state import current as state  # noqa: E402
@@ -243,7 +243,7 @@ def test_checks_of_the_setup(scene, tmp_path):
 
 
 def test_override_syntax_is_checked_before_a_run(scene):
-    pytest.importorskip("batch.overrides")
+    pytest.importorskip("batch.jobs.overrides")
     assert checks.override_problems(['lights["Light"].energy=5', *(text for text, _ in ui.OVERRIDE_PRESETS)]) == []
     problems = checks.override_problems(["no equals sign"])
     assert len(problems) == 1 and problems[0].startswith("Override 'no equals sign': ")
@@ -531,7 +531,11 @@ def test_registering_imports_nothing_heavy():
     report = json.loads(done.stdout.strip().splitlines()[-1])
     print(f"add-on registration: {report['seconds'] * 1000:.0f} ms")
     heavy = [m for m in report["new"] if m.split(".")[0] in {"scipy", "matplotlib", "OpenEXR"}]
-    statistics = [m for m in report["new"] if m.startswith("welch_core.") or m in {"batch.summary", "batch.report"}]
+    statistics = [
+        m
+        for m in report["new"]
+        if m.startswith("welch_core.") or m in {"batch.present.summary", "batch.present.report"}
+    ]
     assert heavy == [] and statistics == []
 
 

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 bpy = pytest.importorskip("bpy")
-scenes = pytest.importorskip("batch.scenes")
-pytest.importorskip("batch.render")
-pytest.importorskip("batch.overrides")
+scenes = pytest.importorskip("batch.blender.scenes")
+pytest.importorskip("batch.blender.render")
+pytest.importorskip("batch.jobs.overrides")
 
 import blender_addon  # noqa: E402
 from blender_addon import runner, session  # noqa: E402

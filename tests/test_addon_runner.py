@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from batch.job import RenderJob
-from batch.launch import Command
+from batch.jobs.job import RenderJob
+from batch.jobs.launch import Command
 from blender_addon import runner
 
 ROOT = Path(__file__).resolve().parent.parent

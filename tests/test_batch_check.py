@@ -12,8 +12,9 @@ from pathlib import Path
 import pytest
 
 import welch_core as wc
-from batch import cli, events
-from batch.scenes import WALL_COLOR_PATH
+from batch import cli
+from batch.blender.scenes import WALL_COLOR_PATH
+from batch.jobs import protocol
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = ("--scene", "corner", "--resolution", 64, 64)
@@ -52,7 +53,7 @@ def test_a_planted_bias_stops_early_as_biased(tmp_path):
     """Walls 0.21 instead of 0.2 (the paper's Fig. 16), paired: found within a few passes."""
     grey = f"{WALL_COLOR_PATH}=0.21,0.21,0.21,1"
     done = check(*SMALL, "--set", grey, "--json-progress", "--out", tmp_path, expect=1)
-    looks = [e for e in map(events.parse, done.stdout.splitlines()) if isinstance(e, events.Looked)]
+    looks = [e for e in map(protocol.parse, done.stdout.splitlines()) if isinstance(e, protocol.Looked)]
     assert looks[-1].verdict == "biased" and looks[-1].passes <= 8
     assert all(look.verdict is None for look in looks[:-1])
     report = json.loads((tmp_path / "report.json").read_text())
@@ -85,7 +86,7 @@ def test_ctrl_c_keeps_everything_and_resume_continues(tmp_path):
     proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     seen = 0
     for line in proc.stdout:
-        if isinstance(events.parse(line), events.Looked):
+        if isinstance(protocol.parse(line), protocol.Looked):
             seen += 1
             if seen == 4:
                 break
@@ -109,7 +110,7 @@ def test_ctrl_c_keeps_everything_and_resume_continues(tmp_path):
 
 
 def test_tolerance_off_means_no_equivalent_verdict():
-    from batch.check import check_job_from_args
+    from batch.decide.check import check_job_from_args
 
     args = cli.build_parser().parse_args(["check", "--scene", "corner", "--set", "cycles.film_exposure=1.01",
                                           "--tolerance", "off", "--out", "x"])  # fmt: skip

@@ -15,7 +15,8 @@ import pytest
 
 import welch_core as wc
 from batch import cli
-from batch.seeds import format_seeds, parse_seeds
+from batch.jobs.protocol import Exit
+from batch.jobs.seeds import format_seeds, parse_seeds
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -128,8 +129,8 @@ def test_compare_unbiased_biased_and_reports(tmp_path, capsys):
     same = ingest(tmp_path, "same", range(100, 116))
     brighter = ingest(tmp_path, "brighter", range(200, 216), scale=1.05)
 
-    assert cli.main(["compare", ref, same, "--out", str(tmp_path / "aa")]) == cli.EXIT_OK
-    assert cli.main(["compare", ref, brighter, "--out", str(tmp_path / "ab")]) == cli.EXIT_BIASED
+    assert cli.main(["compare", ref, same, "--out", str(tmp_path / "aa")]) == Exit.OK
+    assert cli.main(["compare", ref, brighter, "--out", str(tmp_path / "ab")]) == Exit.BIASED
     out = capsys.readouterr().out
     assert "verdict: no evidence of bias" in out and "verdict: biased" in out
 
@@ -150,13 +151,13 @@ def test_compare_unbiased_biased_and_reports(tmp_path, capsys):
 def test_full_maps_on_request(tmp_path):
     ref = ingest(tmp_path, "ref", range(0, 8))
     test = ingest(tmp_path, "test", range(100, 108))
-    assert cli.main(["compare", ref, test, "--out", str(tmp_path / "r"), "--full-maps"]) == cli.EXIT_OK
+    assert cli.main(["compare", ref, test, "--out", str(tmp_path / "r"), "--full-maps"]) == Exit.OK
     files = json.loads((tmp_path / "r" / "report.json").read_text())["files"]
     assert files == {"pvalues_exr": "pvalues.exr", "html": "report.html", "pvalue_map_png": "pvalue_map.png",
                      "overlay_png": "overlay.png"}  # fmt: skip
     for name in files.values():
         assert (tmp_path / "r" / name).stat().st_size > 0
-    assert cli.main(["selftest", ref, "--out", str(tmp_path / "s")]) == cli.EXIT_OK
+    assert cli.main(["selftest", ref, "--out", str(tmp_path / "s")]) == Exit.OK
     assert not (tmp_path / "s" / "overlay.png").exists()
 
 
@@ -164,14 +165,14 @@ def test_paired_is_chosen_for_identical_seeds(tmp_path):
     ref = ingest(tmp_path, "ref", range(16))
     brighter = ingest(tmp_path, "brighter", range(16), scale=1.01)
     out = tmp_path / "paired"
-    assert cli.main(["compare", ref, brighter, "--out", str(out)]) == cli.EXIT_BIASED
+    assert cli.main(["compare", ref, brighter, "--out", str(out)]) == Exit.BIASED
     assert json.loads((out / "report.json").read_text())["test"] == "paired"
 
 
 def test_a_run_compared_with_itself_says_so(tmp_path, capsys):
     ref = ingest(tmp_path, "ref", range(16))
     capsys.readouterr()
-    assert cli.main(["compare", ref, ref, "--out", str(tmp_path / "same")]) == cli.EXIT_USAGE
+    assert cli.main(["compare", ref, ref, "--out", str(tmp_path / "same")]) == Exit.USAGE
     assert capsys.readouterr().err == (
         "error: the two runs hold the same passes and were made the same way (a run compared with itself): compare "
         "it with a run rendered with "
@@ -182,9 +183,9 @@ def test_a_run_compared_with_itself_says_so(tmp_path, capsys):
 def test_overlapping_seeds_are_refused(tmp_path, capsys):
     a = ingest(tmp_path, "a", range(0, 10))
     b = ingest(tmp_path, "b", range(5, 15))
-    assert cli.main(["compare", a, b, "--out", str(tmp_path / "r")]) == cli.EXIT_USAGE
+    assert cli.main(["compare", a, b, "--out", str(tmp_path / "r")]) == Exit.USAGE
     assert "error: the runs share 5 seeds but not all" in capsys.readouterr().err
-    assert cli.main(["compare", a, a, "--unpaired", "--out", str(tmp_path / "r")]) == cli.EXIT_USAGE
+    assert cli.main(["compare", a, a, "--unpaired", "--out", str(tmp_path / "r")]) == Exit.USAGE
     assert "unpaired Welch test would be invalid" in capsys.readouterr().err
 
 
@@ -196,7 +197,7 @@ def test_ingest_without_seeds_counts_as_independent(tmp_path):
 
 def test_selftest(tmp_path, capsys):
     run = ingest(tmp_path, "run", range(32))
-    assert cli.main(["selftest", run, "--out", str(tmp_path / "self")]) == cli.EXIT_OK
+    assert cli.main(["selftest", run, "--out", str(tmp_path / "self")]) == Exit.OK
     report = json.loads((tmp_path / "self" / "report.json").read_text())
     assert report["n_ref"] == report["n_test"] == 16
     assert "even passes" in report["reference"]["name"]
@@ -205,7 +206,7 @@ def test_selftest(tmp_path, capsys):
 def test_compare_grid_mismatch_exits_2(tmp_path, capsys):
     a = ingest(tmp_path, "a", range(8), tile=16)
     b = ingest(tmp_path, "b", range(8, 16), tile=32)
-    assert cli.main(["compare", a, b, "--out", str(tmp_path / "r")]) == cli.EXIT_USAGE
+    assert cli.main(["compare", a, b, "--out", str(tmp_path / "r")]) == Exit.USAGE
     assert (
         "statistics have different grids (width, height, tile, channels): (96, 64, 16, 3) against (96, 64, 32, 3)"
         in (capsys.readouterr().err)
@@ -216,9 +217,9 @@ def test_compare_missing_and_foreign_files_exit_2(tmp_path, capsys):
     a = ingest(tmp_path, "a", range(8))
     foreign = tmp_path / "foreign.npz"
     np.savez(foreign, x=np.arange(3))
-    assert cli.main(["compare", a, str(tmp_path / "nope.npz"), "--out", str(tmp_path / "r")]) == cli.EXIT_USAGE
+    assert cli.main(["compare", a, str(tmp_path / "nope.npz"), "--out", str(tmp_path / "r")]) == Exit.USAGE
     assert f"error: statistics file {str(tmp_path / 'nope.npz')!r} does not exist" in capsys.readouterr().err
-    assert cli.main(["compare", a, str(foreign), "--out", str(tmp_path / "r")]) == cli.EXIT_USAGE
+    assert cli.main(["compare", a, str(foreign), "--out", str(tmp_path / "r")]) == Exit.USAGE
     assert "is not a welch-bias-stats file" in capsys.readouterr().err
 
 
@@ -228,16 +229,16 @@ def test_ingest_errors(tmp_path, capsys):
     paths = write_passes(folder, [1, 2])
     small = write_passes(folder, [3], shape=(32, 32))
     out = str(tmp_path / "x.npz")
-    assert cli.main(["ingest", *paths, *small, "--spp", "1", "--out", out]) == cli.EXIT_USAGE
+    assert cli.main(["ingest", *paths, *small, "--spp", "1", "--out", out]) == Exit.USAGE
     assert "must be 64x96 (height x width) like the run, got 32x32" in capsys.readouterr().err
     assert not os.path.exists(out)
-    assert cli.main(["ingest", *paths, "--spp", "1", "--seeds", "0:3", "--out", out]) == cli.EXIT_USAGE
+    assert cli.main(["ingest", *paths, "--spp", "1", "--seeds", "0:3", "--out", out]) == Exit.USAGE
     assert "error: --seeds gives 3 seeds for 2 files" in capsys.readouterr().err
     nan_pass = folder / "nan.exr"
     image = np.ones((64, 96, 3), np.float32)
     image[3, 4, 1] = np.nan
     wc.write_exr(nan_pass, image)
-    assert cli.main(["ingest", *paths, str(nan_pass), "--spp", "1", "--out", out]) == cli.EXIT_USAGE
+    assert cli.main(["ingest", *paths, str(nan_pass), "--spp", "1", "--out", out]) == Exit.USAGE
     assert "has 1 non-finite pixel values" in capsys.readouterr().err
     assert cli.main(["ingest", *paths, str(nan_pass), "--spp", "1", "--on-nan", "skip", "--out", out]) == 0
     assert wc.load_stats(out).n == 2
@@ -249,7 +250,7 @@ def test_unwritable_report_folder_exits_2(tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("x")
     capsys.readouterr()
-    assert cli.main(["compare", a, b, "--out", str(blocker / "sub")]) == cli.EXIT_USAGE
+    assert cli.main(["compare", a, b, "--out", str(blocker / "sub")]) == Exit.USAGE
     assert capsys.readouterr().err == f"error: {blocker / 'sub'}: Not a directory\n"
 
 
@@ -274,14 +275,14 @@ def test_merge_equals_one_run(tmp_path, capsys):
     np.testing.assert_allclose(merged.mean, whole.mean, rtol=1e-12)
     np.testing.assert_allclose(merged.variance, whole.variance, rtol=1e-10)
     capsys.readouterr()
-    assert cli.main(["merge", first, second, "--out", str(out)]) == cli.EXIT_USAGE
+    assert cli.main(["merge", first, second, "--out", str(out)]) == Exit.USAGE
     assert capsys.readouterr().err == f"error: {out} already exists: choose another --out or remove it first\n"
-    assert cli.main(["merge", first, first, "--out", str(tmp_path / "twice.npz")]) == cli.EXIT_USAGE
+    assert cli.main(["merge", first, first, "--out", str(tmp_path / "twice.npz")]) == Exit.USAGE
     assert f"error: {first}: seed 0 is already in this run" in capsys.readouterr().err
 
 
 def test_no_evidence_says_what_could_have_been_found(tmp_path, capsys):
     ref = ingest(tmp_path, "ref", range(0, 16))
     other = ingest(tmp_path, "other", range(100, 116))
-    assert cli.main(["compare", ref, other, "--out", str(tmp_path / "r")]) == cli.EXIT_OK
+    assert cli.main(["compare", ref, other, "--out", str(tmp_path / "r")]) == Exit.OK
     assert "would have been found with 80 % power" in capsys.readouterr().out

@@ -1,6 +1,6 @@
-"""Distributed rendering on a Dask cluster (batch.distributed): the chunk protocol and the worker's result round-trip,
-the statistics of N workers equal one process's, a render process or a worker killed in the middle of its chunk
-costs only that chunk, Ctrl-C keeps what arrived and --resume completes it, a SLURM job script asks for the GPU.
+"""Distributed rendering on a Dask cluster (batch.jobs.distributed): the chunk protocol and the worker's result
+round-trip, the statistics of N workers equal one process's, a render process or a worker killed in the middle of its
+chunk costs only that chunk, Ctrl-C keeps what arrived and --resume completes it, a SLURM job script asks for the GPU.
 
 Skipped without the ``workers`` extra (dask[distributed], dask-jobqueue).
 """
@@ -21,12 +21,13 @@ import pytest
 distributed = pytest.importorskip("distributed", reason="needs the workers extra: pip install -e '.[workers]'")
 
 import welch_core as wc  # noqa: E402
-from batch import distributed as dist  # noqa: E402
-from batch import events  # noqa: E402
 from batch.errors import BatchError  # noqa: E402
-from batch.job import RenderJob  # noqa: E402
-from batch.launch import ChunkRequest, parse_request, run_job  # noqa: E402
-from batch.progress import Progress  # noqa: E402
+from batch.jobs import distributed as dist  # noqa: E402
+from batch.jobs import protocol  # noqa: E402
+from batch.jobs.job import RenderJob  # noqa: E402
+from batch.jobs.launch import run_job  # noqa: E402
+from batch.jobs.protocol import ChunkRequest, parse_request  # noqa: E402
+from batch.present.progress import Progress  # noqa: E402
 
 #: A job of passes slow enough (~0.05-0.1 s each here) that a chunk of 6 can be caught in the middle.
 SEEDS = tuple(range(24))
@@ -126,7 +127,7 @@ class _NanEverySecondPass:
 
 @pytest.mark.parametrize(("policy", "seeds"), [("skip", [4, 6]), ("keep", [3, 4, 5, 6])])
 def test_a_served_chunk_holds_exactly_its_seeds(tmp_path, policy, seeds):
-    from batch.run import _render_chunk  # imports bpy
+    from batch.blender.run import _render_chunk  # imports bpy
 
     job = make_job(tmp_path / "served.npz", on_nan=policy, seeds=tuple(range(10)))
     like = wc.TileStats(32, 32, 16, 3, wc.RunInfo(spp=16, scene="corner"))
@@ -135,13 +136,13 @@ def test_a_served_chunk_holds_exactly_its_seeds(tmp_path, policy, seeds):
     _render_chunk(job, _NanEverySecondPass(), ChunkRequest((3, 4, 5, 6), str(out)), like, progress, None)
     chunk = wc.load_stats(out)
     assert chunk.seeds == seeds and chunk.info == like.info and like.n == 0
-    assert progress.events[-1] == events.Saved(out=str(out), passes=len(seeds))
-    warned = [e.message for e in progress.events if isinstance(e, events.Warned)]
+    assert progress.events[-1] == protocol.Saved(out=str(out), passes=len(seeds))
+    warned = [e.message for e in progress.events if isinstance(e, protocol.Warned)]
     assert len(warned) == (2 if policy == "skip" else 0)
 
 
 def test_a_served_chunk_that_fails_keeps_its_passes_and_refuses_foreign_seeds(tmp_path):
-    from batch.run import RunError, _render_chunk
+    from batch.blender.run import RunError, _render_chunk
 
     job = make_job(tmp_path / "served.npz", seeds=tuple(range(10)))
     like = wc.TileStats(32, 32, 16, 3, wc.RunInfo(spp=16))
@@ -321,11 +322,11 @@ def test_two_local_workers_give_the_statistics_of_one_process(reference, tmp_pat
     assert_same_statistics(stats, reference)
     assert_same_statistics(wc.load_stats(job.out), reference)
     kinds = [type(e) for e in progress.events]
-    assert kinds == [events.Started] + [events.PassDone] * len(SEEDS) + [events.Finished], kinds
-    assert progress.events[0] == events.Started(total=24, todo=24, out=job.out)
+    assert kinds == [protocol.Started] + [protocol.PassDone] * len(SEEDS) + [protocol.Finished], kinds
+    assert progress.events[0] == protocol.Started(total=24, todo=24, out=job.out)
     assert sorted(e.seed for e in progress.events[1:-1]) == list(SEEDS)
     assert [e.done for e in progress.events[1:-1]] == list(range(1, 25))
-    assert progress.events[-1] == events.Finished(out=job.out, passes=24)
+    assert progress.events[-1] == protocol.Finished(out=job.out, passes=24)
 
 
 @pytest.mark.slow
@@ -352,7 +353,7 @@ def test_a_process_killed_in_the_middle_of_its_chunk_costs_only_that_chunk(refer
     assert found, "no render process was caught in the middle of a chunk"
     assert len(set(stats.seeds)) == len(stats.seeds) == len(SEEDS)
     assert_same_statistics(stats, reference)
-    assert sorted(e.seed for e in progress.events if isinstance(e, events.PassDone)) == list(SEEDS)
+    assert sorted(e.seed for e in progress.events if isinstance(e, protocol.PassDone)) == list(SEEDS)
     # The pool ended its render processes; the killed one is not among any that are left.
     assert all(not servers for servers in render_processes(cluster).values())
 
@@ -375,8 +376,8 @@ def test_ctrl_c_keeps_what_arrived_and_resume_completes_the_run(reference, clust
 
     progress = Recorder(len(SEEDS))
     stats = dist.render_distributed(job.replace(resume=True), progress, scheduler=cluster, chunk=CHUNK)
-    assert progress.events[0] == events.Started(total=24, todo=24 - kept.n, out=job.out)
-    rendered = [e.seed for e in progress.events if isinstance(e, events.PassDone)]
+    assert progress.events[0] == protocol.Started(total=24, todo=24 - kept.n, out=job.out)
+    rendered = [e.seed for e in progress.events if isinstance(e, protocol.PassDone)]
     assert sorted(rendered + kept.seeds) == list(SEEDS)
     assert_same_statistics(stats, reference)
     assert_same_statistics(wc.load_stats(job.out), reference)

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 import welch_core as wc
-from batch.progress import Progress
-from batch.run import RunError, render_passes
-from batch.scenes import WALL_COLOR_PATH
+from batch.blender.run import RunError, render_passes
+from batch.blender.scenes import WALL_COLOR_PATH
+from batch.present.progress import Progress
 
 ROOT = Path(__file__).resolve().parents[1]
 pytestmark = pytest.mark.slow

@@ -1,4 +1,4 @@
-"""Progress events (batch.events) and their output (batch.progress): one way out, one way in."""
+"""Progress events (batch.jobs.protocol) and their output (batch.present.progress): one way out, one way in."""
 
 import io
 import json
@@ -9,34 +9,34 @@ from pathlib import Path
 
 import pytest
 
-from batch import events
-from batch.progress import Progress
+from batch.jobs import protocol
+from batch.present.progress import Progress
 
 ROOT = Path(__file__).resolve().parents[1]
 
 EVERY_EVENT = [
-    events.Started(total=8, todo=5, out="runs/ref.npz"),
-    events.PassDone(done=4, total=8, seed=3, seconds=0.25, eta=1.0),
-    events.PassDone(done=8, total=8, seed=7, seconds=0.5, eta=None),
-    events.Warned(message="pass with seed 3 has 2 non-finite pixel values: skipped"),
-    events.Failed(message="--set cycles.nope=1: 'CyclesRenderSettings' has no property 'nope'"),
-    events.Saved(out="runs/ref.npz", passes=5),
-    events.Looked(passes=9, p_value=0.0049, threshold=1.7e-06, ruled_out=0.0076, verdict=None, left=28, seconds=0.7),
-    events.Looked(passes=11, p_value=1e-9, threshold=1.7e-06, ruled_out=None, verdict="biased", left=27, seconds=0.8),
-    events.Finished(out="runs/ref.npz", passes=8),
+    protocol.Started(total=8, todo=5, out="runs/ref.npz"),
+    protocol.PassDone(done=4, total=8, seed=3, seconds=0.25, eta=1.0),
+    protocol.PassDone(done=8, total=8, seed=7, seconds=0.5, eta=None),
+    protocol.Warned(message="pass with seed 3 has 2 non-finite pixel values: skipped"),
+    protocol.Failed(message="--set cycles.nope=1: 'CyclesRenderSettings' has no property 'nope'"),
+    protocol.Saved(out="runs/ref.npz", passes=5),
+    protocol.Looked(passes=9, p_value=0.0049, threshold=1.7e-06, ruled_out=0.0076, verdict=None, left=28, seconds=0.7),
+    protocol.Looked(passes=11, p_value=1e-9, threshold=1.7e-06, ruled_out=None, verdict="biased", left=27, seconds=0.8),
+    protocol.Finished(out="runs/ref.npz", passes=8),
 ]
 
 
 @pytest.mark.parametrize("event", EVERY_EVENT, ids=lambda e: type(e).__name__)
 def test_every_event_round_trips(event):
-    line = events.to_line(event)
+    line = protocol.to_line(event)
     assert "\n" not in line and json.loads(line)["event"] == event.name
-    assert events.parse(line) == event
-    assert events.parse("  " + line + "\n") == event
+    assert protocol.parse(line) == event
+    assert protocol.parse("  " + line + "\n") == event
 
 
 def test_every_event_type_is_tested():
-    assert {type(e) for e in EVERY_EVENT} == set(events.EVENT_TYPES.values())
+    assert {type(e) for e in EVERY_EVENT} == set(protocol.EVENT_TYPES.values())
 
 
 def test_other_output_is_skipped():
@@ -51,11 +51,11 @@ def test_other_output_is_skipped():
         '{"event": "done", "out": "x.npz"}',  # a missing field
         "",
     ]
-    assert [events.parse(line) for line in lines] == [None] * len(lines)
+    assert [protocol.parse(line) for line in lines] == [None] * len(lines)
 
 
 def test_non_finite_numbers_become_null():
-    line = events.to_line(events.PassDone(done=1, total=2, seed=0, seconds=0.1, eta=float("inf")))
+    line = protocol.to_line(protocol.PassDone(done=1, total=2, seed=0, seconds=0.1, eta=float("inf")))
     assert json.loads(line)["eta"] is None
 
 
@@ -70,12 +70,12 @@ def test_progress_lines_for_people_and_programs():
             progress.finished("ref.npz", 4)
         if json_lines:
             assert err.getvalue() == ""
-            parsed = [events.parse(line) for line in out.getvalue().splitlines()]
+            parsed = [protocol.parse(line) for line in out.getvalue().splitlines()]
             assert parsed == [
-                events.Started(total=4, todo=3, out="ref.npz"),
-                events.PassDone(done=2, total=4, seed=7, seconds=0.5, eta=1.0),
-                events.Warned(message="careful"),
-                events.Finished(out="ref.npz", passes=4),
+                protocol.Started(total=4, todo=3, out="ref.npz"),
+                protocol.PassDone(done=2, total=4, seed=7, seconds=0.5, eta=1.0),
+                protocol.Warned(message="careful"),
+                protocol.Finished(out="ref.npz", passes=4),
             ]
         else:
             assert out.getvalue() == ""
@@ -90,7 +90,7 @@ def test_progress_lines_for_people_and_programs():
 def test_a_reader_that_goes_away_does_not_stop_the_job():
     """`--json-progress | head -1`: no BrokenPipeError traceback; the job goes on and ends normally."""
     code = (
-        "from batch.progress import Progress\n"
+        "from batch.present.progress import Progress\n"
         "p = Progress(100000, json_lines=True)\n"
         "for seed in range(100000):\n"
         "    p.pass_done(seed, 0.001)\n"
@@ -100,7 +100,7 @@ def test_a_reader_that_goes_away_does_not_stop_the_job():
     first = producer.stdout.readline()
     producer.stdout.close()  # what `head -1` does after one line
     _, err = producer.communicate(timeout=60)
-    assert events.parse(first.decode()) is not None
+    assert protocol.parse(first.decode()) is not None
     assert producer.returncode == 0 and err.decode() == "finished\n"
 
 
@@ -119,7 +119,7 @@ def test_a_terminal_gets_one_live_line(capsys):
 
 def test_a_check_on_a_terminal_shows_the_evidence_on_its_line(capsys):
     progress = Progress(0, label="check", live=True)
-    progress.emit(events.Looked(passes=9, p_value=0.0049, threshold=1.7e-06, ruled_out=0.0076, verdict=None,
+    progress.emit(protocol.Looked(passes=9, p_value=0.0049, threshold=1.7e-06, ruled_out=0.0076, verdict=None,
                                 left=28, seconds=0.7))  # fmt: skip
     err = capsys.readouterr().err
     assert "smallest p 0.0049 (stops at 1.7e-06); a bias beyond 0.76 % ruled out; 28 looks left" in err

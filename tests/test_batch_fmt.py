@@ -1,6 +1,6 @@
-"""How numbers are written for people (batch.fmt)."""
+"""How numbers are written for people (batch.present.fmt)."""
 
-from batch import fmt
+from batch.present import fmt
 
 
 def test_p_values():

@@ -19,7 +19,8 @@ import pytest
 import welch_core as wc
 from batch import cli
 from batch.errors import BatchError
-from batch.lock import OutputLock
+from batch.jobs.lock import OutputLock
+from batch.jobs.protocol import Exit
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -49,7 +50,7 @@ def write_run(path, seeds, scale=1.0, size=32, tile=16) -> str:
 def test_a_second_writer_is_refused_at_once_naming_the_first(tmp_path):
     out = tmp_path / "run.npz"
     holder = subprocess.Popen(
-        [sys.executable, "-c", f"from batch.lock import OutputLock\nwith OutputLock({str(out)!r}):\n input()"],
+        [sys.executable, "-c", f"from batch.jobs.lock import OutputLock\nwith OutputLock({str(out)!r}):\n input()"],
         cwd=ROOT,
         stdin=subprocess.PIPE,
         text=True,
@@ -81,7 +82,7 @@ def test_ingest_and_merge_refuse_to_overwrite(tmp_path, capsys):
     wc.write_exr(exr, np.ones((32, 32, 3), np.float32))
     for args in (["ingest", str(exr), "--spp", "1", "--out", a], ["merge", a, b, "--out", b]):
         before = Path(args[-1]).read_bytes()
-        assert cli.main(args) == cli.EXIT_USAGE
+        assert cli.main(args) == Exit.USAGE
         assert capsys.readouterr().err == f"error: {args[-1]} already exists: choose another --out or remove it first\n"
         assert Path(args[-1]).read_bytes() == before
 
@@ -168,7 +169,7 @@ def test_a_full_disk_keeps_the_previous_report_and_prints_no_success(tmp_path, c
     a = write_run(tmp_path / "a.npz", range(8))
     b = write_run(tmp_path / "b.npz", range(8, 16), scale=1.5)
     out = tmp_path / "report"
-    assert cli.main(["compare", a, b, "--out", str(out)]) == cli.EXIT_BIASED
+    assert cli.main(["compare", a, b, "--out", str(out)]) == Exit.BIASED
     before = {p.name: p.read_bytes() for p in out.iterdir()}
     capsys.readouterr()
 
@@ -176,7 +177,7 @@ def test_a_full_disk_keeps_the_previous_report_and_prints_no_success(tmp_path, c
         raise OSError(28, "No space left on device")
 
     monkeypatch.setattr(os, "fsync", full_disk)
-    assert cli.main(["compare", a, a.replace("a.npz", "b.npz"), "--out", str(out)]) == cli.EXIT_USAGE
+    assert cli.main(["compare", a, a.replace("a.npz", "b.npz"), "--out", str(out)]) == Exit.USAGE
     captured = capsys.readouterr()
     assert captured.err == "error: No space left on device\n" and "report:" not in captured.out
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before  # every file as it was, no temporary left

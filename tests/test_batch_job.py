@@ -1,4 +1,4 @@
-"""The render-job contract (batch.job, batch.launch): every field survives the trip through argv, bad jobs are
+"""The render-job contract (batch.jobs.job, batch.jobs.launch): every field survives the trip through argv, bad jobs are
 refused in one line, and the commands that start a job are built from it alone."""
 
 import argparse
@@ -11,9 +11,10 @@ from pathlib import Path
 
 import pytest
 
-from batch import cli, launch
+from batch import cli
 from batch.errors import BatchError
-from batch.job import RenderJob, add_arguments
+from batch.jobs import launch
+from batch.jobs.job import RenderJob, add_arguments
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -128,7 +129,9 @@ def test_the_render_path_imports_no_scipy_and_no_openexr():
     """Inside a stock Blender only numpy is there: parsing a render job and reading a pass must not need more."""
     code = (
         "import sys, io, contextlib\n"
-        "from batch import cli, job, launch, passes, progress, lock, events\n"
+        "from batch import cli\n"
+        "from batch.jobs import job, launch, lock, passes, protocol\n"
+        "from batch.present import progress\n"
         "import welch_core.formats, welch_core.exr, welch_core.tiles\n"
         "with contextlib.redirect_stdout(io.StringIO()):\n"
         "    try:\n"

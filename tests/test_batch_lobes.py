@@ -1,4 +1,4 @@
-"""Light components and light groups (batch.lobes, ``--lobes``, ``ingest --layers``): the pass arithmetic with
+"""Light components and light groups (batch.jobs.lobes, ``--lobes``, ``ingest --layers``): the pass arithmetic with
 the names of Blender 5.0 and of 3.4, the layers through ingest, merge and compare, and real Cycles renders where a
 change of one lobe shows in that lobe only."""
 
@@ -13,8 +13,10 @@ import numpy as np
 import pytest
 
 import welch_core as wc
-from batch import cli, lobes
+from batch import cli
 from batch.errors import BatchError
+from batch.jobs import lobes
+from batch.jobs.protocol import Exit
 from welch_core.exr import write_exr_channels
 
 
@@ -104,7 +106,7 @@ def test_ingest_merge_and_compare_test_every_layer(tmp_path, capsys):
     test = ingest_layers(tmp_path, "test", range(100, 124), glossy_scale=1.15)
     layers = wc.load_layers(test)
     assert list(layers) == ["diffuse", "glossy"] and layers["glossy"].n == 24
-    assert cli.main(["compare", ref, test, "--out", str(tmp_path / "r")]) == cli.EXIT_BIASED
+    assert cli.main(["compare", ref, test, "--out", str(tmp_path / "r")]) == Exit.BIASED
     out = capsys.readouterr().out
     assert "layer glossy: biased" in out and "layer diffuse: no evidence of bias" in out
     assert "the difference is in glossy" in out
@@ -123,7 +125,7 @@ def test_ingest_merge_and_compare_test_every_layer(tmp_path, capsys):
     assert wc.load_layers(tmp_path / "merged.npz")["glossy"].n == 32
     plain = tmp_path / "plain.npz"
     wc.save_stats(plain, wc.load_stats(more))
-    assert cli.main(["merge", ref, str(plain), "--out", str(tmp_path / "m2.npz")]) == cli.EXIT_USAGE
+    assert cli.main(["merge", ref, str(plain), "--out", str(tmp_path / "m2.npz")]) == Exit.USAGE
     assert "its layers (none) differ from" in capsys.readouterr().err
 
 
@@ -132,7 +134,7 @@ def test_ingest_names_a_missing_layer(tmp_path, capsys):
     folder.mkdir()
     paths = write_layered_passes(folder, range(2), drop="glossy")
     args = ["ingest", *paths, "--spp", "1", "--tile", "8", "--layers", "glossy", "--out", str(tmp_path / "x.npz")]
-    assert cli.main(args) == cli.EXIT_USAGE
+    assert cli.main(args) == Exit.USAGE
     assert "has no layer 'glossy' with R, G, B (its layers: diffuse)" in capsys.readouterr().err
 
 
@@ -181,10 +183,10 @@ def test_a_change_of_one_lobe_shows_in_that_lobe(tmp_path):
     layers = wc.load_layers(ref)
     assert list(layers) == list(lobes.COMPONENTS)  # no light group in this scene: none asked for by 'all'
     code, report, verdicts = compare_layers(tmp_path, ref, blur, "blur")
-    assert code == cli.EXIT_BIASED and verdicts["glossy"] == "biased" and verdicts["diffuse"] == "no_evidence"
+    assert code == Exit.BIASED and verdicts["glossy"] == "biased" and verdicts["diffuse"] == "no_evidence"
     assert report["layers"]["component_sum"]["reference"]["ok"] and report["layers"]["component_sum"]["test"]["ok"]
     code, report, verdicts = compare_layers(tmp_path, plain, walls, "walls")
-    assert code == cli.EXIT_BIASED and verdicts["diffuse"] == "biased" and verdicts["glossy"] != "biased"
+    assert code == Exit.BIASED and verdicts["diffuse"] == "biased" and verdicts["glossy"] != "biased"
     assert "diffuse" in report["layers"]["explained_by"] and "glossy" not in report["layers"]["explained_by"]
 
 
@@ -215,8 +217,8 @@ def render_scene(tmp_path, name, seeds, setup, extra):
 def test_the_components_add_up_to_the_image_in_every_builtin_scene():
     """Each built-in scene, two passes at 32x32 with every component: their tile sums add up to Combined's (the
     check that flags a missing or double-counted component; volumes, SSS, hair and the environment included)."""
-    from batch import render
-    from batch.scenes import SCENES
+    from batch.blender import render
+    from batch.blender.scenes import SCENES
 
     worst = {}
     for name in SCENES:
@@ -239,7 +241,7 @@ def test_check_with_lobes_tests_each_layer_of_the_final_passes(tmp_path):
          "--sampling-pattern", "TABULATED_SOBOL", "--out", str(tmp_path)],
         capture_output=True, text=True,
     )  # fmt: skip
-    assert done.returncode == cli.EXIT_BIASED, done.stderr[-2000:]
+    assert done.returncode == Exit.BIASED, done.stderr[-2000:]
     assert "layer diffuse: biased" in done.stdout and "layer glossy: no light in either run" in done.stdout
     layers = json.loads((tmp_path / "report.json").read_text())["layers"]
     assert layers["after_looks"] and layers["explained_by"] == ["diffuse"]

@@ -1,5 +1,5 @@
-"""The report (batch.report): one self-contained page with the per-tile data, report.json, pvalues.exr; no plotting
-library on the way."""
+"""The report (batch.present.report): one self-contained page with the per-tile data, report.json, pvalues.exr;
+no plotting library on the way."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import welch_core as wc
-from batch import report, summary
+from batch.present import report, summary
 from tests.synthetic import scene_means, tile_sum_samples
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -1,6 +1,6 @@
-"""Regression suites (batch.suite, ``python -m batch suite``): the suite file and its one-line errors, verdicts to
-statuses and exit codes, JUnit XML, and real runs: bless, a refused re-bless, a passing run, a planted change
-named as failed, a missing device skipped, and the dashboard in a real browser."""
+"""Regression suites (batch.decide.suite, ``python -m batch suite``): the suite file and its one-line errors, verdicts
+to statuses and exit codes, JUnit XML, and real runs: bless, a refused re-bless, a passing run, a planted change named
+as failed, a missing device skipped, and the dashboard in a real browser."""
 
 from __future__ import annotations
 
@@ -14,8 +14,9 @@ from pathlib import Path
 
 import pytest
 
-from batch import suite as suites
+from batch.decide import suite as suites
 from batch.errors import BatchError
+from batch.present.junit import junit_xml
 from welch_core import Verdict
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -82,8 +83,8 @@ def test_a_suite_file_with_defaults(tmp_path):
 
 
 def test_the_builtin_suite_names_real_scenes_and_valid_planted_changes():
-    from batch.overrides import parse_override
-    from batch.scenes import SCENES
+    from batch.blender.scenes import SCENES
+    from batch.jobs.overrides import parse_override
 
     suite = suites.load_suite("builtin")
     assert len(suite.cases) >= 14
@@ -117,10 +118,9 @@ def test_statuses_and_exit_codes():
 
 
 def test_junit_xml_counts_each_kind():
-    suite = suites.Suite(Path("s.toml"), "s", 0.01, ())
     results = [outcome("passed", verdict="no_evidence"), outcome("failed", verdict="biased"), outcome("skipped"),
                outcome("error"), outcome("inconclusive", verdict="inconclusive")]  # fmt: skip
-    root = ET.fromstring(suites.junit_xml(suite, results))
+    root = ET.fromstring(junit_xml("s", results))
     group = root.find("testsuite")
     assert group.attrib | {"time": "0"} == {"name": "s", "tests": "5", "failures": "2", "errors": "1",
                                             "skipped": "1", "time": "0"}  # fmt: skip

@@ -1,11 +1,11 @@
-"""What people read about a comparison (batch.summary): top tiles, notes, strict JSON, differences."""
+"""What people read about a comparison (batch.present.summary): top tiles, notes, strict JSON, differences."""
 
 import json
 
 import numpy as np
 import pytest
 
-from batch import summary
+from batch.present import summary
 from tests.synthetic import make_run, scene_means, tile_sum_samples
 from welch_core import RunInfo, compare
 

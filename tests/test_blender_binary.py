@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 import welch_core as wc
-from batch import events
+from batch.jobs import protocol
 
 ROOT = Path(__file__).resolve().parents[1]
 BLENDER = shutil.which("blender")
@@ -61,7 +61,7 @@ def test_blender_b_renders_a_builtin_scene(tmp_path):
 def test_render_with_the_blender_option_streams_progress_and_passes_errors_through(tmp_path):
     blend = tmp_path / "corner34.blend"
     script = (
-        "import sys, bpy; sys.path.insert(0, sys.argv[-2]); from batch.scenes import build_scene;"
+        "import sys, bpy; sys.path.insert(0, sys.argv[-2]); from batch.blender.scenes import build_scene;"
         "bpy.ops.wm.read_factory_settings(use_empty=True); build_scene('corner');"
         "bpy.ops.wm.save_as_mainfile(filepath=sys.argv[-1])"
     )
@@ -70,7 +70,7 @@ def test_render_with_the_blender_option_streams_progress_and_passes_errors_throu
     out = tmp_path / "run.npz"
     done = batch("render", blend, *SMALL, "--seeds", "0:3", "--blender", BLENDER, "--json-progress", "--out", out,
                  check=0)  # fmt: skip
-    seen = [events.parse(line) for line in done.stdout.splitlines()]
+    seen = [protocol.parse(line) for line in done.stdout.splitlines()]
     assert [type(e).__name__ for e in seen if e is not None] == ["Started", "PassDone", "PassDone", "PassDone",
                                                                 "Finished"]  # fmt: skip
     run = wc.load_stats(out)

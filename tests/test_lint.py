@@ -1,4 +1,4 @@
-"""batch.lint on real scenes: Blender's biased defaults, the unbiased built-in scenes, each rule."""
+"""batch.blender.lint on real scenes: Blender's biased defaults, the unbiased built-in scenes, each rule."""
 
 from __future__ import annotations
 
@@ -6,9 +6,9 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-from batch.lint import BIASED, INFO, NOT_INDEPENDENT, RULES, SEVERITIES, Finding, Rule, lint_scene  # noqa: E402
-from batch.overrides import apply_overrides  # noqa: E402
-from batch.scenes import SCENES, build_scene  # noqa: E402
+from batch.blender.lint import BIASED, INFO, NOT_INDEPENDENT, RULES, SEVERITIES, Finding, Rule, lint_scene  # noqa: E402
+from batch.blender.scenes import SCENES, build_scene  # noqa: E402
+from batch.jobs.overrides import apply_overrides  # noqa: E402
 
 
 @pytest.fixture

@@ -1,12 +1,12 @@
-"""batch.overrides: the --set syntax (pure Python) and resolving, validating and applying it with bpy."""
+"""batch.jobs.overrides: the --set syntax (pure Python) and resolving, validating and applying it with bpy."""
 
 from __future__ import annotations
 
 import pytest
 
-from batch.overrides import Override, OverrideError, Step, parse_override
+from batch.jobs.overrides import Override, OverrideError, Step, parse_override
 
-# The corner scene's wall colour (batch.scenes.WALL_COLOR_PATH); written out so parsing is tested without bpy.
+# The corner scene's wall colour (batch.blender.scenes.WALL_COLOR_PATH); written out so parsing is tested without bpy.
 WALL_COLOR_PATH = 'materials["Walls"].node_tree.nodes["Diffuse BSDF"].inputs["Color"].default_value'
 
 # -- parsing, no Blender ----------------------------------------------------------------------------------------
@@ -82,20 +82,20 @@ def test_malformed_values(text, reason):
 def corner():
     """A fresh corner scene in an empty file (bpy is one global state per process)."""
     bpy = pytest.importorskip("bpy")
-    from batch.scenes import build_scene
+    from batch.blender.scenes import build_scene
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     return build_scene("corner")
 
 
 def apply(scene, *texts):
-    from batch.overrides import apply_overrides
+    from batch.jobs.overrides import apply_overrides
 
     return apply_overrides(scene, texts)
 
 
 def test_scene_paths_resolve(corner):
-    from batch import scenes
+    from batch.blender import scenes
 
     assert scenes.WALL_COLOR_PATH == WALL_COLOR_PATH
     changes = apply(corner, f"{scenes.WALL_COLOR_PATH}=0.3,0.3,0.3,1", f"{scenes.LIGHT_ENERGY_PATH}=5")

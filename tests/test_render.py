@@ -1,4 +1,5 @@
-"""batch.render and batch.scenes with real Cycles (bpy module): opening scenes, unbiased settings, passes, records."""
+"""batch.blender.render and batch.blender.scenes with real Cycles (bpy module): opening scenes, unbiased settings,
+passes, records."""
 
 from __future__ import annotations
 
@@ -13,11 +14,11 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-from batch import render  # noqa: E402
+from batch.blender import render  # noqa: E402
+from batch.blender.scenes import SCENES, WALL_COLOR_PATH, build_scene  # noqa: E402
 from batch.errors import BatchError  # noqa: E402
-from batch.overrides import apply_overrides, parse_override  # noqa: E402
-from batch.rna import render_size  # noqa: E402
-from batch.scenes import SCENES, WALL_COLOR_PATH, build_scene  # noqa: E402
+from batch.jobs.overrides import apply_overrides, parse_override  # noqa: E402
+from batch.jobs.rna import render_size  # noqa: E402
 
 SIZE = 64
 

@@ -192,10 +192,6 @@ class Outcome:
         return self.scales[0]
 
     @property
-    def exit_code(self) -> int:
-        return self.verdict.exit_code
-
-    @property
     def verdict_text(self) -> str:
         if self.verdict == Verdict.EQUIVALENT and self.identical:
             return "equivalent (bit-identical)"

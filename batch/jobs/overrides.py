@@ -41,7 +41,7 @@ import re
 from collections.abc import Iterable
 from dataclasses import dataclass
 
-from .errors import BatchError
+from ..errors import BatchError
 from .rna import jsonable
 
 DATA_COLLECTIONS = frozenset(

@@ -12,9 +12,9 @@ from typing import Any
 
 import numpy as np
 
+from .._siblings import welch_core as wc
+from ..jobs.seeds import format_seeds
 from . import fmt, words
-from ._siblings import welch_core as wc
-from .seeds import format_seeds
 
 #: How many of the most significant tiles a summary lists.
 TOP_TILES = 10
@@ -345,7 +345,7 @@ def layers_summary(
     comparisons (for the report's maps). None when the runs have no layer in common. `after_looks`: the layers
     are tested once on the final passes of a check, a description of where the difference is, not a decision
     under the stopping rule."""
-    from .lobes import COMPONENT_SUM_TOLERANCE, COMPONENTS
+    from ..jobs.lobes import COMPONENT_SUM_TOLERANCE, COMPONENTS
 
     names = [name for name in ref_layers if name in test_layers]
     if not names:
@@ -400,7 +400,7 @@ def layers_summary(
 
 
 def lobes_sum_error(run: wc.TileStats, layers: dict[str, wc.TileStats]) -> float:
-    from .lobes import COMPONENTS, component_sum_error
+    from ..jobs.lobes import COMPONENTS, component_sum_error
 
     return component_sum_error(run.sums, [layers[name].sums for name in COMPONENTS])
 

@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .._siblings import welch_core as wc
 from . import fmt
-from ._siblings import welch_core as wc
 from .summary import design_line
 
 #: The longest side of the pictures in the page (what statistics files store as their preview); tiles are drawn

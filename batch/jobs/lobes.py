@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import BatchError
+from ..errors import BatchError
 
 #: The components of Combined, in the order the report lists them.
 COMPONENTS = ("diffuse", "glossy", "transmission", "volume", "emission", "environment")

@@ -11,7 +11,7 @@ import json
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
-from .rna import jsonable
+from ..jobs.rna import jsonable
 from .scenes import CYCLES_MAX_BOUNCES as MAX_BOUNCES
 
 BIASED = "biased"  # the converged image differs from the unbiased one

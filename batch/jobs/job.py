@@ -13,7 +13,7 @@ import argparse
 import dataclasses
 from dataclasses import dataclass
 
-from .errors import BatchError
+from ..errors import BatchError
 from .lobes import LOBES, parse_lobes
 from .seeds import MAX_PASSES, format_seeds, parse_seeds
 

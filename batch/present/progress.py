@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import sys
 
-from . import events, fmt
+from ..jobs import protocol
+from . import fmt
 
 #: Recent passes the ETA is estimated from: the first passes include start-up costs.
 ETA_WINDOW = 16
 
 #: What a brief plain log shows.
-_BRIEF_EVENTS = (events.Warned, events.Failed)
+_BRIEF_EVENTS = (protocol.Warned, protocol.Failed)
 
 
 class Progress:
@@ -36,7 +37,7 @@ class Progress:
         self.live = (not json_lines and sys.stderr.isatty()) if live is None else live
         self._bar = None
 
-    def emit(self, event: events.Event) -> None:
+    def emit(self, event: protocol.Event) -> None:
         """Write one event: a JSON line on stdout, the live line, or a line for people on stderr."""
         if self._silent:
             return
@@ -44,7 +45,7 @@ class Progress:
             return
         try:
             if self.json_lines:
-                print(events.to_line(event), flush=True)
+                print(protocol.to_line(event), flush=True)
             elif self.live:
                 self._show(event)
             else:
@@ -52,27 +53,27 @@ class Progress:
         except BrokenPipeError:
             self._silent = True  # nobody reads any more; the job itself goes on
 
-    def _show(self, event: events.Event) -> None:
+    def _show(self, event: protocol.Event) -> None:
         from tqdm import tqdm  # only for a terminal
 
         match event:
-            case events.Started(total=total, todo=todo):
+            case protocol.Started(total=total, todo=todo):
                 self._bar = tqdm(total=total, initial=total - todo, desc=self.label, unit="pass", file=sys.stderr,
                                  dynamic_ncols=True, leave=True)  # fmt: skip
-            case events.PassDone(done=done):
+            case protocol.PassDone(done=done):
                 if self._bar is not None:
                     self._bar.update(done - self._bar.n)
-            case events.Looked(verdict=verdict):
+            case protocol.Looked(verdict=verdict):
                 if self._bar is None:
                     self._bar = tqdm(desc=self.label, unit="look", file=sys.stderr, dynamic_ncols=True, leave=True)
                 self._bar.update(1)
                 self._bar.set_postfix_str(self.describe(event).partition(": ")[2], refresh=True)
                 if verdict is not None:
                     self._close()
-            case events.Finished():
+            case protocol.Finished():
                 self._close()
                 tqdm.write(self.describe(event), file=sys.stderr)
-            case events.Saved():
+            case protocol.Saved():
                 pass
             case _:
                 tqdm.write(self.describe(event), file=sys.stderr)
@@ -82,45 +83,45 @@ class Progress:
             self._bar.close()
             self._bar = None
 
-    def describe(self, event: events.Event) -> str:
+    def describe(self, event: protocol.Event) -> str:
         label = self.label
         match event:
-            case events.Started(total=total, todo=todo, out=out):
+            case protocol.Started(total=total, todo=todo, out=out):
                 return f"{label}: {todo} of {total} passes to render into {out}"
-            case events.PassDone(done=done, total=total, seed=seed, seconds=seconds, eta=eta):
+            case protocol.PassDone(done=done, total=total, seed=seed, seconds=seconds, eta=eta):
                 return f"{label}: pass {done}/{total} (seed {seed}) {seconds:.2f} s, ETA {fmt.duration(eta)}"
-            case events.Warned(message=message):
+            case protocol.Warned(message=message):
                 return f"warning: {message}"
-            case events.Failed(message=message):
+            case protocol.Failed(message=message):
                 return f"error: {message}"
-            case events.Looked(passes=passes, p_value=p, threshold=threshold, ruled_out=bound, verdict=verdict):
+            case protocol.Looked(passes=passes, p_value=p, threshold=threshold, ruled_out=bound, verdict=verdict):
                 evidence = f"smallest p {fmt.p_value(p)} (stops at {fmt.p_value(threshold)})"
                 bias = "no bound yet" if bound is None else f"a bias beyond {fmt.percent(bound).lstrip('+')} ruled out"
                 state = verdict if verdict is not None else f"{event.left} looks left"
                 return f"{label}: {passes} passes a side, {fmt.duration(event.seconds)}: {evidence}; {bias}; {state}"
-            case events.Saved(out=out, passes=passes):
+            case protocol.Saved(out=out, passes=passes):
                 return f"{label}: saved {passes} passes in {out}"
-            case events.Finished(out=out, passes=passes):
+            case protocol.Finished(out=out, passes=passes):
                 return f"{label}: {passes} passes in {out}"
         raise TypeError(f"not a progress event: {event!r}")
 
     def start(self, done: int, out: str) -> None:
         self.done = done
-        self.emit(events.Started(total=self.total, todo=self.total - done, out=out))
+        self.emit(protocol.Started(total=self.total, todo=self.total - done, out=out))
 
     def pass_done(self, seed: int, seconds: float) -> None:
         self.done += 1
         self._times.append(seconds)
         recent = self._times[-ETA_WINDOW:]
         eta = sum(recent) / len(recent) * (self.total - self.done)
-        self.emit(events.PassDone(done=self.done, total=self.total, seed=seed, seconds=seconds, eta=eta))
+        self.emit(protocol.PassDone(done=self.done, total=self.total, seed=seed, seconds=seconds, eta=eta))
 
     def warning(self, message: str) -> None:
-        self.emit(events.Warned(message=message))
+        self.emit(protocol.Warned(message=message))
 
     def error(self, message: str) -> None:
         self._close()
-        self.emit(events.Failed(message=message))
+        self.emit(protocol.Failed(message=message))
 
     def finished(self, out: str, passes: int) -> None:
-        self.emit(events.Finished(out=out, passes=passes))
+        self.emit(protocol.Finished(out=out, passes=passes))

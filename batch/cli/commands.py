@@ -14,8 +14,9 @@ Inside Blender the same arguments follow ``--``:
 
     blender -b SCENE.blend --python-exit-code 4 --python batch/blender_entry.py -- render --seeds 0:64 ...
 
-Exit codes: 0 = done / no evidence of bias / lint clean (demo: always 0 when it ran), 1 = biased / lint found biased
-settings, 2 = usage or input error, 3 = inconclusive, 4 = internal error, 130 = interrupted (the checkpoint is kept).
+Exit codes (`batch.jobs.protocol.Exit`): 0 = done / no evidence of bias / equivalent / lint clean (demo: always 0
+when it ran), 1 = biased / lint found biased settings, 2 = usage or input error, 3 = inconclusive, 4 = internal
+error, 130 = interrupted (the checkpoint is kept).
 """
 
 from __future__ import annotations
@@ -27,12 +28,12 @@ import sys
 import time
 import traceback
 
-from . import job as jobs
-from ._siblings import welch_core as wc
-from .check import DEFAULT_MAX_PASSES
-from .errors import BatchError
+from .._siblings import welch_core as wc
+from ..decide.check import DEFAULT_MAX_PASSES
+from ..errors import BatchError
+from ..jobs import job as jobs
+from ..jobs.protocol import Exit, verdict_exit
 
-EXIT_OK, EXIT_BIASED, EXIT_USAGE, EXIT_INCONCLUSIVE, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 4, 130
 DEFAULT_ALPHA = 0.01
 
 INPUT_ERRORS = (BatchError, wc.WelchInputError, OSError)
@@ -62,7 +63,7 @@ class Parser(argparse.ArgumentParser):
     """argparse with a usage error in one line (its usage block of a dozen lines hid the reason)."""
 
     def error(self, message: str):
-        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+        self.exit(Exit.USAGE, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -357,14 +358,14 @@ def main(argv: list[str] | None = None) -> int:
         return COMMANDS[args.command](args)
     except KeyboardInterrupt:
         print("interrupted: the statistics written so far are kept (continue with --resume)", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return Exit.INTERRUPTED
     except INPUT_ERRORS as exc:
         _report_error(args, _describe(exc))
-        return EXIT_USAGE
+        return Exit.USAGE
     except Exception as exc:
         traceback.print_exc()
         _report_error(args, f"internal error: {type(exc).__name__}: {exc}")
-        return EXIT_INTERNAL
+        return Exit.INTERNAL
 
 
 def _describe(exc: Exception) -> str:
@@ -376,7 +377,7 @@ def _describe(exc: Exception) -> str:
 def _report_error(args, message: str) -> None:
     message = " ".join(message.split())  # one line
     if getattr(args, "json_progress", False):
-        from .progress import Progress
+        from ..present.progress import Progress
 
         Progress(0, json_lines=True).error(message)
     print(f"error: {message}", file=sys.stderr)
@@ -391,33 +392,33 @@ def _refuse_existing(path: str) -> None:
 
 
 def cmd_render(args) -> int:
-    from .progress import Progress
+    from ..present.progress import Progress
 
     job = jobs.RenderJob.from_args(args)
     progress = Progress(len(job.seeds), args.json_progress)
     if args.workers or args.scheduler:
         if args.serve:
             raise BatchError("--serve renders in this process: it does not go with --workers or --scheduler")
-        from .distributed import render_distributed
+        from ..jobs.distributed import render_distributed
 
         render_distributed(job, progress, workers=args.workers, scheduler=args.scheduler, chunk=args.chunk)
     elif args.chunk:
         raise BatchError("--chunk goes with --workers or --scheduler")
     elif job.blender:
-        from .launch import run_job
+        from ..jobs.launch import run_job
 
         run_job(job, progress)
     else:
-        from .run import chunk_requests, render_run
+        from ..blender.run import chunk_requests, render_run
 
         render_run(job, progress, chunk_requests(sys.stdin) if args.serve else None)
-    return EXIT_OK
+    return Exit.OK
 
 
 def cmd_ingest(args) -> int:
-    from .lock import OutputLock
-    from .passes import add_layered_pass, channel_layers
-    from .progress import Progress
+    from ..jobs.lock import OutputLock
+    from ..jobs.passes import add_layered_pass, channel_layers
+    from ..present.progress import Progress
 
     if args.seeds is not None and len(args.seeds) != len(args.passes):
         raise BatchError(f"--seeds gives {len(args.seeds)} seeds for {len(args.passes)} files")
@@ -451,7 +452,7 @@ def cmd_ingest(args) -> int:
         _refuse_existing(args.out)
         wc.save_stats(args.out, stats, layers)
     progress.finished(args.out, stats.n)
-    return EXIT_OK
+    return Exit.OK
 
 
 def _content_seed(path: str) -> int:
@@ -464,18 +465,18 @@ def _content_seed(path: str) -> int:
 
 
 def cmd_check(args) -> int:
-    from .check import check_job_from_args, run_check
-    from .pipeline import lines
-    from .progress import Progress
+    from ..decide.check import check_job_from_args, run_check
+    from ..present.pipeline import lines
+    from ..present.progress import Progress
 
     job = check_job_from_args(args)
     verdict, report = run_check(job, Progress(0, args.json_progress, label="check"))
     print("\n".join(lines(report, job.out)))
-    return verdict.exit_code
+    return verdict_exit(verdict)
 
 
 def cmd_compare(args) -> int:
-    from .pipeline import compare_files, lines
+    from ..present.pipeline import compare_files, lines
 
     report = compare_files(
         args.ref,
@@ -490,11 +491,11 @@ def cmd_compare(args) -> int:
         full_maps=args.full_maps,
     )
     print("\n".join(lines(report, args.out)))
-    return wc.Verdict(report["verdict"]).exit_code
+    return verdict_exit(report["verdict"])
 
 
 def cmd_selftest(args) -> int:
-    from .pipeline import lines, present
+    from ..present.pipeline import lines, present
 
     run = wc.load_stats(args.run)
     if run.n < 4:
@@ -507,7 +508,7 @@ def cmd_selftest(args) -> int:
     names = (f"{name} (even passes)", f"{name} (odd passes)")
     report = present(args.out, result, first, second, names=names, full_maps=args.full_maps)
     print("\n".join(lines(report, args.out)))
-    return result.verdict.exit_code
+    return verdict_exit(result.verdict)
 
 
 def cmd_merge(args) -> int:
@@ -523,32 +524,32 @@ def cmd_merge(args) -> int:
             layers = {name: layer.merge(more[name]) for name, layer in layers.items()}
         except wc.WelchInputError as exc:
             raise wc.WelchInputError(f"{path}: {exc}") from None
-    from .lock import OutputLock
+    from ..jobs.lock import OutputLock
 
     with OutputLock(args.out):
         _refuse_existing(args.out)
         wc.save_stats(args.out, merged, layers)
     print(f"merge: {merged.n} passes from {len(args.runs)} files in {args.out}")
-    return EXIT_OK
+    return Exit.OK
 
 
 def cmd_lint(args) -> int:
-    from .lint import lint_scene
-    from .render import open_scene
+    from ..blender.lint import lint_scene
+    from ..blender.render import open_scene
 
     findings = lint_scene(open_scene(args.blend, None, args.blend_scene))
     for finding in findings:
         print(finding.format())
     biased = [f for f in findings if f.severity in ("biased", "not-independent")]
     print(f"{len(findings)} findings, {len(biased)} that bias the image or make passes dependent")
-    return EXIT_BIASED if biased else EXIT_OK
+    return Exit.BIASED if biased else Exit.OK
 
 
 def cmd_suite(args) -> int:
     from pathlib import Path
 
-    from . import suite as suites
-    from .progress import Progress
+    from ..decide import suite as suites
+    from ..present.progress import Progress
 
     suite = suites.load_suite(args.suite_file)
     cases = suite.select(args.filter)
@@ -566,7 +567,7 @@ def cmd_suite(args) -> int:
         done = suites.bless(suite, cases, refs, progress, args.force, args.blender, args.device, say)
         for item in done:
             say(f"{item.case}: {item.status}: {item.message}" + (f" (report: {item.report})" if item.report else ""))
-        return EXIT_BIASED if any(item.status == "refused" for item in done) else EXIT_OK
+        return Exit.BIASED if any(item.status == "refused" for item in done) else Exit.OK
     out = Path(args.out)
     outcomes = suites.run_suite(
         suite,
@@ -597,7 +598,7 @@ def cmd_demo(args) -> int:
     from .demo import run_demo
 
     run_demo(args.out, passes=args.passes, resolution=args.resolution)
-    return EXIT_OK  # the demo's bias is planted: finding it is the demo working, not a failure
+    return Exit.OK  # the demo's bias is planted: finding it is the demo working, not a failure
 
 
 COMMANDS = {

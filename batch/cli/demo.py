@@ -9,12 +9,12 @@ from __future__ import annotations
 import os
 import time
 
-from ._siblings import welch_core as wc
-from .job import RenderJob
-from .pipeline import lines, present
-from .progress import Progress
-from .run import render_run
-from .scenes import WALL_COLOR_PATH
+from .._siblings import welch_core as wc
+from ..blender.run import render_run
+from ..blender.scenes import WALL_COLOR_PATH
+from ..jobs.job import RenderJob
+from ..present.pipeline import lines, present
+from ..present.progress import Progress
 
 #: About a minute on 2 cores: 128×128 px, 32 passes of 4 spp a side, 32×32 tiles (16 tiles).
 DEMO_PASSES = 32

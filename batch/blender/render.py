@@ -18,12 +18,12 @@ from pathlib import Path
 import bpy
 import numpy as np
 
-from ._siblings import welch_core as wc
-from .errors import BatchError
-from .job import DEFAULT_SAMPLING_PATTERNS, GPU_BACKENDS, NO_GPU_MESSAGE
-from .lobes import COMPONENTS, LIGHTGROUP_PREFIX, PASS_PROPERTIES, layers_from_channels
-from .lock import process_alive
-from .rna import jsonable, render_size
+from .._siblings import welch_core as wc
+from ..errors import BatchError
+from ..jobs.job import DEFAULT_SAMPLING_PATTERNS, GPU_BACKENDS, NO_GPU_MESSAGE
+from ..jobs.lobes import COMPONENTS, LIGHTGROUP_PREFIX, PASS_PROPERTIES, layers_from_channels
+from ..jobs.lock import process_alive
+from ..jobs.rna import jsonable, render_size
 from .scenes import BUILDER_VERSION, SCENES, build_scene
 
 

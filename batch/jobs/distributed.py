@@ -5,8 +5,8 @@ The client splits the seeds into chunks and submits one Dask task per chunk (`Pa
 in a worker through the render-job contract: each worker thread keeps one serving render process per pool
 (``render --serve`` with the bpy module, or ``blender -b`` with ``--blender``), started on its first chunk, so the
 scene stays loaded (persistent data) from chunk to chunk. The task hands the process the chunk's seeds
-(`batch.launch.ChunkRequest`); the process saves exactly those passes into a worker-local chunk file, and the task
-returns their per-pass tile sums and pixel sum (`ChunkResult`). The client accumulates the chunks into one
+(`batch.jobs.protocol.ChunkRequest`); the process saves exactly those passes into a worker-local chunk file, and the
+task returns their per-pass tile sums and pixel sum (`ChunkResult`). The client accumulates the chunks into one
 `TileStats`, refusing a worker whose renderer or settings differ, checkpoints as they arrive, and reports the
 events of a single process (`render_distributed`).
 
@@ -40,13 +40,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import events
-from ._siblings import welch_core as wc
-from .errors import BatchError
+from .._siblings import welch_core as wc
+from ..errors import BatchError
+from . import protocol
 from .job import RenderJob
-from .launch import THREADS_ENV, ChunkRequest, JobProcess, job_command
+from .launch import THREADS_ENV, JobProcess, job_command
 from .lock import OutputLock, process_alive
-from .progress import Progress
+from .protocol import ChunkRequest, Exit
 from .seeds import format_seeds
 
 #: Chunks per worker thread when no chunk size is given: enough to even out workers of unequal speed and to lose
@@ -70,9 +70,6 @@ SHM_ROOM = 1 << 30  # chunk files go to memory when it has this much room (a 4K 
 
 #: Seconds a worker waits for a render process it ends before killing it.
 CLOSE_WAIT = 5.0
-
-#: Exit code of a render job that stopped on its input (the command line's EXIT_USAGE): not worth a retry.
-EXIT_JOB_ERROR = 2
 
 
 class ChunkFailed(RuntimeError):
@@ -181,12 +178,12 @@ class _Server:
                     if code is not None and self.process.events.empty():
                         return self._ended(code, seeds, out, worker)
                     continue
-                if isinstance(event, events.PassDone):
+                if isinstance(event, protocol.PassDone):
                     seconds[event.seed] = event.seconds
                     self.rendered += 1
-                elif isinstance(event, events.Warned):
+                elif isinstance(event, protocol.Warned):
                     warnings.append(event.message)
-                elif isinstance(event, events.Saved) and event.out == out:
+                elif isinstance(event, protocol.Saved) and event.out == out:
                     break
         finally:
             self.chunk = ()
@@ -200,7 +197,7 @@ class _Server:
     def _ended(self, code: int, seeds: tuple[int, ...], out: str, worker: str) -> ChunkError:
         _remove(out)  # the passes saved before a failure: the chunk is rendered again, or the run stops
         reason = self.process.error_message() or "no error message"
-        if code == EXIT_JOB_ERROR:
+        if code == Exit.USAGE:  # the job stopped on its input: not worth a retry
             return ChunkError(seeds, reason, worker)
         raise RenderProcessDied(
             f"the render process (PID {self.process.popen.pid}) on {worker} ended with exit code {code} after "
@@ -507,7 +504,7 @@ class PassPool:
 
 def render_distributed(
     job: RenderJob,
-    progress: Progress,
+    progress,  # a batch.present.progress.Progress, or anything with its methods
     workers: int | None = None,
     scheduler: str | None = None,
     chunk: int | None = None,

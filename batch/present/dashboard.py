@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .._siblings import welch_core as wc
 from . import fmt
-from ._siblings import welch_core as wc
 
 THUMBNAIL = 96  # pixels, the longer side
 
@@ -40,9 +40,10 @@ img{width:96px;height:96px;object-fit:contain;image-rendering:pixelated;backgrou
 """
 
 
-def write_dashboard(path: Path, summary: dict, outcomes, refs: Path) -> None:
-    """Write the dashboard of `outcomes` (``batch.suite.CaseResult``) with `summary` (``summary.json``'s content)."""
-    rows = "".join(_row(o, record, refs) for o, record in zip(outcomes, summary["cases"], strict=True))
+def write_dashboard(path: Path, summary: dict, outcomes, references: list[Path]) -> None:
+    """Write the dashboard of `outcomes` (``batch.decide.suite.CaseResult``) with `summary` (``summary.json``'s
+    content) and each case's reference statistics file."""
+    rows = "".join(_row(o, record, ref) for o, record, ref in zip(outcomes, summary["cases"], references, strict=True))
     counts = "".join(
         f'<span style="color:{_STATUS_COLOURS[k]}">{v} {k}</span>' for k, v in summary["counts"].items() if v
     )
@@ -72,9 +73,9 @@ def _near(target: str, page: Path) -> str:
         return target
 
 
-def _row(outcome, record: dict, refs: Path) -> str:
+def _row(outcome, record: dict, reference: Path) -> str:
     colour = _STATUS_COLOURS[outcome.status]
-    pictures = _thumbnails(outcome, refs)
+    pictures = _thumbnails(outcome, reference)
     cells = "".join(
         f'<td><img alt="{name}" src="{url}"></td>' if url else f'<td class="muted">{"—"}</td>'
         for name, url in zip(("reference", "test", "p-value map"), pictures, strict=True)
@@ -107,15 +108,13 @@ def _difference_cell(record: dict) -> str:
     return "".join(rows) or "—"
 
 
-def _thumbnails(outcome, refs: Path) -> list[str | None]:
+def _thumbnails(outcome, reference: Path) -> list[str | None]:
     """Data URLs of the reference's and the test side's mean renders and of the p-value map (None: missing)."""
-    from .suite import reference_path
-
     if outcome.folder is None:
         return [None, None, None]
     folder = Path(outcome.folder)
     means = []
-    for path in (reference_path(refs, outcome.case), folder / "test.npz"):
+    for path in (reference, folder / "test.npz"):
         try:
             preview, run = wc.load_preview(path), wc.load_stats(path, pixels=False)
         except wc.WelchInputError:

@@ -10,16 +10,18 @@ import os
 import signal
 import time
 
-from . import events, render
-from ._siblings import welch_core as wc
-from .errors import BatchError
-from .job import RenderJob
-from .launch import THREADS_ENV, ChunkRequest, parse_request
-from .lock import OutputLock
-from .overrides import apply_overrides, parse_override
-from .passes import add_layered_pass, add_pass
-from .progress import Progress
-from .rna import render_size
+from .._siblings import welch_core as wc
+from ..errors import BatchError
+from ..jobs import protocol
+from ..jobs.job import RenderJob
+from ..jobs.launch import THREADS_ENV
+from ..jobs.lock import OutputLock
+from ..jobs.overrides import apply_overrides, parse_override
+from ..jobs.passes import add_layered_pass, add_pass
+from ..jobs.protocol import ChunkRequest, parse_request
+from ..jobs.rna import render_size
+from ..present.progress import Progress
+from . import render
 
 
 class RunError(BatchError):
@@ -127,7 +129,7 @@ def render_run(job: RenderJob, progress: Progress, requests=None) -> wc.TileStat
 
     With `requests` (e.g. lines of stdin for ``render --serve``, read by `chunk_requests`), the scene stays
     loaded and passes are rendered as asked, until the requests end or the seeds run out: a pass count N renders
-    the next N seeds into `job.out`, saved after each chunk; a `batch.launch.ChunkRequest` renders exactly its
+    the next N seeds into `job.out`, saved after each chunk; a `batch.jobs.protocol.ChunkRequest` renders exactly its
     seeds into its own new file (a worker's chunk, `batch.distributed`) and leaves `job.out` alone. Each chunk
     ends with a `Saved` event naming the file it saved.
     """
@@ -154,7 +156,7 @@ def render_run(job: RenderJob, progress: Progress, requests=None) -> wc.TileStat
                     chunk, todo = todo[: max(count, 0)], todo[max(count, 0) :]
                     render_passes(renderer, chunk, stats, progress, job.on_nan, job.out, len(chunk) + 1, stop, layers)
                     wc.save_stats(job.out, stats, layers)
-                    progress.emit(events.Saved(out=job.out, passes=stats.n))
+                    progress.emit(protocol.Saved(out=job.out, passes=stats.n))
                     if not todo:
                         break
     progress.finished(job.out, stats.n)
@@ -175,7 +177,7 @@ def _render_chunk(
     render_passes(renderer, request.seeds, chunk, progress, job.on_nan, request.out, len(request.seeds) + 1, stop)
     if chunk.n == 0:
         wc.save_stats(request.out, chunk)  # every pass was skipped (--on-nan skip): the file still answers
-    progress.emit(events.Saved(out=request.out, passes=chunk.n))
+    progress.emit(protocol.Saved(out=request.out, passes=chunk.n))
 
 
 def chunk_requests(stream):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._siblings import welch_core as wc
+from .._siblings import welch_core as wc
 from .job import ON_NAN
 
 

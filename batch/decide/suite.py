@@ -49,11 +49,11 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
-from ._siblings import welch_core as wc
+from .._siblings import welch_core as wc
+from ..errors import BatchError
+from ..jobs.job import DEVICES, NO_GPU_MESSAGE, RenderJob, parse_tolerance
+from ..jobs.overrides import parse_override
 from .check import CheckJob, run_check
-from .errors import BatchError
-from .job import DEVICES, NO_GPU_MESSAGE, RenderJob, parse_tolerance
-from .overrides import parse_override
 
 #: The suite that ships with the tool: one minimal scene per Cycles feature, and its references.
 BUILTIN = Path(__file__).with_name("suites") / "builtin.toml"
@@ -273,7 +273,7 @@ def bless(suite: Suite, cases: list[Case], refs: Path, progress_factory, force: 
     """Render the reference of each case into `refs`. A case that has one already gets a new render on new
     seeds, compared with the stored one: where they differ significantly the old one stays (unless `force`), and
     the comparison's report is kept next to it: a silent re-bless is how thresholds creep."""
-    from .launch import run_job
+    from ..jobs.launch import run_job
 
     refs.mkdir(parents=True, exist_ok=True)
     done = []
@@ -307,8 +307,8 @@ def bless(suite: Suite, cases: list[Case], refs: Path, progress_factory, force: 
 
 def _against_stored(suite: Suite, report: Path, old: wc.TileStats, new: wc.TileStats):
     """(whether the new reference contradicts the stored one, what was found, the comparison's report or None)."""
-    from .pipeline import present
-    from .summary import verdict_line
+    from ..present.pipeline import present
+    from ..present.summary import verdict_line
 
     try:
         result = wc.compare(old, new, suite.alpha, "welch")
@@ -418,7 +418,7 @@ def _cluster(workers: int | None, scheduler: str | None):
     """{"scheduler", "threads"} for the cases' checks: a LocalCluster started once for all cases with `workers`,
     the given scheduler, or nothing (each case renders in its own processes)."""
     if workers:
-        from . import distributed
+        from ..jobs import distributed
 
         with distributed.local_cluster(workers) as local:
             yield {"scheduler": local.scheduler_address, "threads": distributed.local_threads(workers)}
@@ -468,7 +468,8 @@ def _run_case(
 
 def write_outputs(suite: Suite, outcomes: list[CaseResult], out: Path, refs: Path) -> dict:
     """``summary.json``, ``junit.xml`` and ``index.html`` (the dashboard) in `out`; returns the summary."""
-    from .dashboard import write_dashboard
+    from ..present.dashboard import write_dashboard
+    from ..present.junit import junit_xml
 
     out.mkdir(parents=True, exist_ok=True)
     summary = {
@@ -484,9 +485,9 @@ def write_outputs(suite: Suite, outcomes: list[CaseResult], out: Path, refs: Pat
     }
     text = json.dumps(summary, indent=2, allow_nan=False)
     wc.formats.atomic_write(out / "summary.json", lambda f: f.write(text.encode()))
-    xml = junit_xml(suite, outcomes)
+    xml = junit_xml(suite.name, outcomes)
     wc.formats.atomic_write(out / "junit.xml", lambda f: f.write(xml))
-    write_dashboard(out / "index.html", summary, outcomes, refs)
+    write_dashboard(out / "index.html", summary, outcomes, [reference_path(refs, o.case) for o in outcomes])
     return summary
 
 
@@ -506,36 +507,3 @@ def _outcome_record(o: CaseResult, out: Path) -> dict:
         "largest": outcome["largest"] if outcome else None,
         "most_significant": outcome["most_significant"] if outcome else None,
     }
-
-
-def junit_xml(suite: Suite, outcomes: list[CaseResult]) -> bytes:
-    """JUnit XML as CI servers read it: a test case per case and device; `biased` where unexpected is a
-    failure, a case that could not run an error, a missing device a skip; inconclusive is a failure too (its
-    message says so), since the case did not pass."""
-    import xml.etree.ElementTree as ET
-
-    counts = {s: sum(o.status == s for o in outcomes) for s in ("failed", "inconclusive", "error", "skipped")}
-    root = ET.Element("testsuites")
-    group = ET.SubElement(
-        root,
-        "testsuite",
-        name=suite.name,
-        tests=str(len(outcomes)),
-        failures=str(counts["failed"] + counts["inconclusive"]),
-        errors=str(counts["error"]),
-        skipped=str(counts["skipped"]),
-        time=f"{sum(o.seconds for o in outcomes):.3f}",
-    )
-    for o in outcomes:
-        case = ET.SubElement(group, "testcase", classname=f"{suite.name}.{o.device}", name=o.case.name,
-                             time=f"{o.seconds:.3f}")  # fmt: skip
-        if o.status in ("failed", "inconclusive"):
-            ET.SubElement(case, "failure", message=f"{o.verdict}: {o.message}", type=o.status)
-        elif o.status == "error":
-            ET.SubElement(case, "error", message=o.message, type="error")
-        elif o.status == "skipped":
-            ET.SubElement(case, "skipped", message=o.message)
-        out = ET.SubElement(case, "system-out")
-        out.text = o.message + (f"\nreport: {Path(o.folder) / 'report.html'}" if o.folder else "")
-    ET.indent(root)
-    return ET.tostring(root, encoding="utf-8", xml_declaration=True)

@@ -17,7 +17,7 @@ import bpy
 import numpy as np
 from mathutils import Vector
 
-from .errors import BatchError
+from ..errors import BatchError
 
 # Override paths for the corner scene's knobs (the syntax of ``batch.overrides``).
 WALL_COLOR_PATH = 'materials["Walls"].node_tree.nodes["Diffuse BSDF"].inputs["Color"].default_value'
@@ -217,7 +217,7 @@ def _glossy_scene() -> bpy.types.Scene:
     return scene
 
 
-# -- one feature each: the built-in regression suite's scenes (batch/suites/builtin.toml) ---------------------
+# -- one feature each: the built-in regression suite's scenes (batch/decide/suites/builtin.toml) ---------------------
 # The corner box with one object or setting that exercises one part of Cycles, nothing else: a change in that part
 # shows in a few tiles of a small image, where the rest of the box is a control.
 

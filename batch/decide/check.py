@@ -19,12 +19,13 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from . import events
-from ._siblings import welch_core as wc
-from .errors import BatchError
-from .job import RenderJob
-from .launch import JobProcess, job_command
-from .progress import Progress
+from .._siblings import welch_core as wc
+from ..errors import BatchError
+from ..jobs import protocol
+from ..jobs.job import RenderJob
+from ..jobs.launch import JobProcess, job_command
+from ..jobs.protocol import Exit
+from ..present.progress import Progress
 
 STATE_FILE = "check.json"
 STATE_VERSION = 1
@@ -172,7 +173,7 @@ class Check:
 
     def _pool(self, job: RenderJob):
         """A pass pool for one side; with local workers both sides share one cluster (started with the first)."""
-        from . import distributed
+        from ..jobs import distributed
 
         if self.job.scheduler:
             return distributed.PassPool(job, scheduler=self.job.scheduler, threads=self.job.threads)
@@ -238,7 +239,7 @@ class Check:
     def _render_on_pools(self, passes: int) -> None:
         """Both sides up to `passes` passes on the cluster: every chunk of both submitted first, so they render at
         once; each side's file saved in seed order, as one process saves it."""
-        from . import distributed
+        from ..jobs import distributed
 
         waiting = [side for side in self._rendered() if side.passes < passes]
         for side in waiting:
@@ -269,20 +270,20 @@ class Check:
         its last `Saved` event, if any arrived."""
         saved = None
         for event in side.process.drain():
-            if isinstance(event, events.Saved):
+            if isinstance(event, protocol.Saved):
                 saved = event.passes
-            elif isinstance(event, events.Warned):
+            elif isinstance(event, protocol.Warned):
                 self.progress.warning(f"{side.name}: {event.message}")
-            elif side.progress is not None and isinstance(event, events.Started | events.PassDone):
+            elif side.progress is not None and isinstance(event, protocol.Started | protocol.PassDone):
                 side.progress.emit(event)
         return saved
 
     def _failed(self, side: _Side, code: int) -> None:
         reason = side.process.error_message() or "no error message"
         self._stop()
-        if code == 2:
+        if code == Exit.USAGE:
             raise BatchError(f"{side.name} side: {reason}")
-        if code in (130, -2, -15):
+        if protocol.interrupted(code):
             raise KeyboardInterrupt
         raise RuntimeError(f"the {side.name} side's render failed (exit code {code}): {reason}")
 
@@ -344,7 +345,7 @@ class Check:
             bound = look.ruled_out if math.isfinite(look.ruled_out) else None
             verdict = look.verdict.text if look.verdict is not None else None
             self.progress.emit(
-                events.Looked(
+                protocol.Looked(
                     passes=n,
                     p_value=look.p_value,
                     threshold=look.threshold,
@@ -393,8 +394,8 @@ def _json_default(value):
 def run_check(job: CheckJob, progress) -> tuple[wc.Verdict, dict]:
     """Run `job` and write its report into ``job.out``: the verdict and the report's content. The verdict and its
     numbers are the last look's; the map and the tiles are the final passes' statistics (descriptive)."""
-    from .pipeline import present
-    from .summary import check_record
+    from ..present.pipeline import present
+    from ..present.summary import check_record
 
     Path(job.out).mkdir(parents=True, exist_ok=True)
     check = Check(job, progress)

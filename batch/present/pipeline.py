@@ -8,8 +8,8 @@ from __future__ import annotations
 import os
 from typing import Any
 
+from .._siblings import welch_core as wc
 from . import summary as summaries
-from ._siblings import welch_core as wc
 
 
 def present(

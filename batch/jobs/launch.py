@@ -8,7 +8,6 @@ Used by ``render --blender``, the Blender add-on's background runs and the worke
 from __future__ import annotations
 
 import collections
-import json
 import os
 import queue
 import signal
@@ -18,16 +17,15 @@ import threading
 from dataclasses import dataclass
 from pathlib import Path
 
-from . import events
-from .errors import BatchError
+from ..errors import BatchError
+from . import protocol
 from .job import RenderJob
+from .protocol import ChunkRequest, Exit
 
 #: The folder that holds the ``batch`` and ``welch_core`` packages (the repository or the installed extension).
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 ENTRY_SCRIPT = ROOT / "batch" / "blender_entry.py"
 
-#: Exit code Blender gives when the entry script itself fails (an import error, say): the tool's "internal".
-BLENDER_SCRIPT_FAILED = 4
 
 TAIL_LINES = 20  # output lines kept per stream for error messages
 
@@ -67,7 +65,8 @@ def job_command(
         for name in ("PYTHONPATH", "PYTHONHOME"):
             env.pop(name, None)
         opened = [child.blend] if child.blend else ["--factory-startup"]
-        argv = [job.blender, "-b", *opened, "--python-exit-code", str(BLENDER_SCRIPT_FAILED)]
+        # An entry script that fails before the tool runs (an import error, say) exits as an internal error.
+        argv = [job.blender, "-b", *opened, "--python-exit-code", str(int(Exit.INTERNAL))]
         argv += ["--python", str(ENTRY_SCRIPT), "--", "render", *child.replace(blend=None).to_argv(), *mode]
         return Command(argv, env)
     paths = [str(ROOT), *python_paths, *filter(None, env.get("PYTHONPATH", "").split(os.pathsep))]
@@ -75,55 +74,12 @@ def job_command(
     return Command([python, "-m", "batch", "render", *child.to_argv(), *mode], env)
 
 
-@dataclass(frozen=True)
-class ChunkRequest:
-    """A serving job's request for exactly `seeds` (all among the job's seeds), rendered into a new statistics
-    file `out` that holds those passes only; the job answers with a `Saved` event for `out`. A worker asks for
-    its chunks this way (`batch.distributed`).
-
-    On the job's stdin it is one JSON line, ``{"seeds": [4, 5, 6], "out": "/dev/shm/chunk-3.npz"}``: `to_line`
-    writes it, `parse_request` reads it (a plain count ``N`` asks for the job's next N seeds instead).
-    """
-
-    seeds: tuple[int, ...]
-    out: str
-
-    def __post_init__(self):
-        object.__setattr__(self, "seeds", tuple(self.seeds))
-
-    def to_line(self) -> str:
-        return json.dumps({"seeds": list(self.seeds), "out": self.out})
-
-
-def parse_request(line: str) -> int | ChunkRequest | None:
-    """What a line of a serving job's stdin asks for: a number of passes, a `ChunkRequest`, or None (anything
-    else, which ends the job)."""
-    text = line.strip()
-    if not text.startswith("{"):
-        try:
-            return int(text)
-        except ValueError:
-            return None
-    try:
-        data = json.loads(text)
-    except ValueError:
-        return None
-    if not isinstance(data, dict) or set(data) != {"seeds", "out"}:
-        return None
-    seeds, out = data["seeds"], data["out"]
-    if not isinstance(seeds, list) or not all(isinstance(s, int) and not isinstance(s, bool) for s in seeds):
-        return None
-    if not isinstance(out, str) or not out:
-        return None
-    return ChunkRequest(tuple(seeds), out)
-
-
 class JobProcess:
     """A started job whose stdout (events) and stderr are read by threads, so polling never blocks. With
     `requests`, its stdin stays open for `request` (a job started with ``serve=True``)."""
 
     def __init__(self, command: Command, requests: bool = False):
-        self.events: queue.Queue[events.Event] = queue.Queue()
+        self.events: queue.Queue[protocol.Event] = queue.Queue()
         self.stdout_tail: collections.deque[str] = collections.deque(maxlen=TAIL_LINES)
         self.stderr_tail: collections.deque[str] = collections.deque(maxlen=TAIL_LINES)
         self.last_error = ""
@@ -151,12 +107,12 @@ class JobProcess:
 
     def _read_stdout(self) -> None:
         for line in self.popen.stdout:
-            event = events.parse(line)
+            event = protocol.parse(line)
             if event is None:
                 if line.strip():
                     self.stdout_tail.append(line.rstrip())
                 continue
-            if isinstance(event, events.Failed):
+            if isinstance(event, protocol.Failed):
                 self.last_error = event.message
             self.events.put(event)
 
@@ -190,7 +146,7 @@ class JobProcess:
             except (BrokenPipeError, OSError):
                 pass
 
-    def drain(self) -> list[events.Event]:
+    def drain(self) -> list[protocol.Event]:
         """Events received since the last call."""
         out = []
         while True:
@@ -256,9 +212,9 @@ def run_job(job: RenderJob, progress, python_paths: tuple[str, ...] = ()) -> Non
     if code == 0:
         return
     reason = process.error_message() or "no error message"
-    if code == 2:
+    if code == Exit.USAGE:
         raise BatchError(reason)
-    if code == 130 or code == -signal.SIGINT:
+    if protocol.interrupted(code):
         raise KeyboardInterrupt
     who = job.blender or "the render process"
     raise RuntimeError(f"{who} failed (exit code {code}): {reason}")
@@ -266,5 +222,5 @@ def run_job(job: RenderJob, progress, python_paths: tuple[str, ...] = ()) -> Non
 
 def _relay(process: JobProcess, progress) -> None:
     for event in process.drain():
-        if not isinstance(event, events.Failed):  # the error is reported once, by whoever handles the exit
+        if not isinstance(event, protocol.Failed):  # the error is reported once, by whoever handles the exit
             progress.emit(event)

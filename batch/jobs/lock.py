@@ -12,7 +12,7 @@ import hashlib
 import os
 from pathlib import Path
 
-from .errors import BatchError
+from ..errors import BatchError
 
 
 class OutputLock:
