@@ -32,8 +32,17 @@ def check(*args, expect=None) -> subprocess.CompletedProcess:
     [
         (["--tolerance", "1"], "argument --tolerance: must be a percentage such as 0.5%, got '1'"),
         (["--tolerance", "abc%"], "argument --tolerance: must be a percentage such as 0.5%, got 'abc%'"),
-        (["--unpaired", "--max-passes", "1"], "error: --max-passes must be at least 2, got 1"),
-        (["--unpaired", "--max-seconds", "0"], "error: --max-seconds must be a positive number of seconds, got 0"),
+        (["--unpaired", "--max-passes", "1"], "argument --max-passes: must be an integer in 2..1000000, got '1'"),
+        (["--unpaired", "--max-passes", "1e9"], "argument --max-passes: must be an integer in 2..1000000, got '1e9'"),
+        (
+            ["--unpaired", "--max-seconds", "0"],
+            "argument --max-seconds: must be a number of seconds in (0, 604800], got '0'",
+        ),
+        (
+            ["--unpaired", "--max-seconds", "inf"],
+            "argument --max-seconds: must be a number of seconds in (0, 604800], got 'inf'",
+        ),
+        (["--scene", "cornr"], "error: unknown built-in scene 'cornr'"),
         (["--test-blend", "missing.blend"], "error: --test-blend missing.blend: no such file"),
         (
             [],

@@ -94,8 +94,11 @@ def test_ingest_and_merge_refuse_to_overwrite(tmp_path, capsys):
     ("args", "message"),
     [
         (["--seeds", "0:2147483647"], "argument --seeds: 0:2147483647 gives 2147483647 seeds; a run takes at most"),
-        (["--seeds", "0:4", "--resolution", "70000", "16"], "error: --resolution must be an integer in 1..65536, got "),
-        (["--seeds", "0:4", "--spp", "16777217"], "error: --spp must be an integer in 1..16777216, got 16777217"),
+        (
+            ["--seeds", "0:4", "--resolution", "70000", "16"],
+            "argument --resolution: must be an integer in 1..65536, got ",
+        ),
+        (["--seeds", "0:4", "--spp", "16777217"], "argument --spp: must be an integer in 1..16777216, got '16777217'"),
         (["--seeds", "0:4", "--resolution", "64", "16", "--tile", "32"], "error: --tile 32 is larger than the image"),
     ],
 )

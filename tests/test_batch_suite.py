@@ -43,22 +43,40 @@ CASE = '[[case]]\nname = "a"\nscene = "corner"\n'
         ('[[case]]\nname = "a"\n', "case 'a': give 'scene' (a built-in scene) or 'blend' (a .blend file), one of"),
         (CASE + 'blend = "x.blend"\n', "case 'a': give 'scene' (a built-in scene) or 'blend'"),
         ('[[case]]\nname = "a"\nblend = "missing.blend"\n', "case 'a': blend file "),
-        (CASE + "resolution = [32]\n", "case 'a': 'resolution' must be [width, height] in pixels, got [32]"),
-        (CASE + "passes = 1\n", "case 'a': 'spp' and 'tile' must be positive and 'passes' at least 2"),
-        (CASE + 'spp = "4"\n', "case 'a': 'spp' must be a int, got '4'"),
-        (CASE + 'devices = ["TPU"]\n', "case 'a': 'devices' must be some of CPU, GPU, OPTIX, CUDA, HIP, METAL, ONEAPI"),
+        (CASE + "resolution = [32]\n", "case 'a': 'resolution' must be a width and a height in pixels, got [32]"),
+        (CASE + "passes = 1\n", "case 'a': 'passes' must be an integer in 2..1000000, got 1"),
+        (CASE + "passes = 1e11\n", "case 'a': 'passes' must be an integer in 2..1000000, got 100000000000.0"),
+        (CASE + "seconds = inf\n", "case 'a': 'seconds' must be a number of seconds in (0, 604800], got inf"),
+        (CASE + "seconds = nan\n", "case 'a': 'seconds' must be a number of seconds in (0, 604800], got nan"),
+        (CASE + 'spp = "4"\n', "case 'a': 'spp' must be a number, not text: '4'"),
+        (CASE + 'devices = ["TPU"]\n', "case 'a': 'devices' must be one of CPU, GPU, OPTIX, CUDA, HIP, METAL, ONEAPI"),
+        (CASE + 'devices = ["CPU", "CPU"]\n', "case 'a': 'devices' repeats an item: ['CPU', 'CPU']"),
+        ('[[case]]\nname = "abc\\n"\nscene = "corner"\n', "'name' must be letters, digits, '-', '_' or '.'"),
+        ('[[case]]\nname = "a"\nscene = "cornr"\n', "case 'a': 'scene' 'cornr' is not a built-in scene"),
         (CASE + 'tolerance = "1"\n', "case 'a': 'tolerance' must be a percentage such as 0.5%, got '1'"),
         (CASE + 'expect = "different"\n', "case 'a': 'expect' must be 'same' or 'biased', got 'different'"),
         (CASE + 'set = ["cycles.samples"]\n', "case 'a': 'set' 'cycles.samples': "),
         (CASE + CASE, "case 'a': the name is used twice"),
-        ("[[case]\n", "is not readable TOML"),
+        ("[[case]\n", "not readable TOML"),
     ],
 )
 def test_bad_suite_files_are_refused_in_one_line(tmp_path, text, message):
     path = write_suite(tmp_path, text)
     with pytest.raises(BatchError, match=re.escape(message)) as caught:
         suites.load_suite(str(path))
-    assert "\n" not in str(caught.value) and str(path) in str(caught.value)
+    assert "\n" not in str(caught.value) and str(caught.value).startswith(str(path))
+
+
+def test_every_problem_of_a_suite_file_is_named_before_anything_renders(tmp_path):
+    text = (CASE + 'spp = 0\n[[case]]\nname = "b"\nscene = "nowhere"\nset = ["cycles.max_bounces"]\n'
+            + CASE)  # fmt: skip
+    with pytest.raises(BatchError) as caught:
+        suites.load_suite(str(write_suite(tmp_path, text)))
+    message = str(caught.value)
+    assert message.startswith(f"{tmp_path / 'suite.toml'}: 4 problems, nothing rendered: ")
+    for part in ("case 'a': 'spp' must be an integer in 1..16777216, got 0", "case 'b': 'scene' 'nowhere' is not",
+                 "case 'b': 'set' 'cycles.max_bounces'", "case 'a': the name is used twice"):  # fmt: skip
+        assert part in message, part
 
 
 def test_a_suite_file_with_defaults(tmp_path):

@@ -20,9 +20,10 @@ import numpy as np
 
 from .._siblings import welch_core as wc
 from ..errors import BatchError
-from ..jobs.job import DEFAULT_SAMPLING_PATTERNS, GPU_BACKENDS, NO_GPU_MESSAGE
+from ..jobs.job import DEFAULT_SAMPLING_PATTERNS, NO_GPU_MESSAGE
 from ..jobs.lobes import COMPONENTS, LIGHTGROUP_PREFIX, PASS_PROPERTIES, layers_from_channels
 from ..jobs.lock import process_alive
+from ..jobs.options import GPU_BACKENDS
 from ..jobs.rna import jsonable, render_size
 from .scenes import BUILDER_VERSION, SCENES, build_scene
 

@@ -32,6 +32,7 @@ from .._siblings import welch_core as wc
 from ..decide.check import DEFAULT_MAX_PASSES
 from ..errors import BatchError
 from ..jobs import job as jobs
+from ..jobs.options import DEVICES, OPTIONS, add_options, argparse_type
 from ..jobs.protocol import Exit, verdict_exit
 
 DEFAULT_ALPHA = 0.01
@@ -39,24 +40,12 @@ DEFAULT_ALPHA = 0.01
 INPUT_ERRORS = (BatchError, wc.WelchInputError, OSError)
 
 
-def tolerance_arg(text: str) -> float:
-    """argparse type: a percentage such as ``0.5%``, returned as a fraction (0.005)."""
-    try:
-        return jobs.parse_tolerance(text)
-    except BatchError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
+tolerance_arg = argparse_type(OPTIONS["tolerance"])
 
 
 def tolerance_or_off(text: str) -> float | None:
     """argparse type: a percentage as `tolerance_arg`, or ``off`` (None: no `equivalent` verdict)."""
     return None if text.strip().lower() == "off" else tolerance_arg(text)
-
-
-def _alpha(text: str) -> float:
-    try:
-        return wc.errors.check_alpha(float(text))
-    except (ValueError, wc.WelchInputError):
-        raise argparse.ArgumentTypeError(f"must be a number in (0, 1), got {text!r}") from None
 
 
 class Parser(argparse.ArgumentParser):
@@ -114,18 +103,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     k.add_argument("blend", nargs="?", metavar="SCENE.blend", help="scene file of the reference side")
     k.add_argument("--scene", help="a built-in scene instead of a file (both sides)")
-    k.add_argument("--blend-scene", metavar="NAME", help="which scene of SCENE.blend (default: its active one)")
-    k.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="RNA.PATH=VALUE",
-        help="property override of the test side, repeatable (as render --set)",
-    )
+    add_options(k, ("blend_scene", "overrides"), helps={"overrides": "property override of the test side, repeatable "
+                                                                     "(as render --set)"})  # fmt: skip
     k.add_argument("--test-blend", metavar="OTHER.blend", help="the test side's scene file (default: SCENE.blend)")
     k.add_argument("--test-blend-scene", metavar="NAME", help="which scene of the test side's file")
-    k.add_argument("--blender", metavar="PATH", help="Blender executable of the reference side (default: bpy)")
+    add_options(k, ("blender",), helps={"blender": "Blender executable of the reference side (default: bpy)"})
     k.add_argument("--test-blender", metavar="PATH", help="Blender executable of the test side (default: --blender)")
     k.add_argument(
         "--tolerance",
@@ -143,31 +125,24 @@ def build_parser() -> argparse.ArgumentParser:
         help="claim `equivalent` for N x N tiles (a multiple of --tile) instead of the finest: a weaker claim, "
         "stated with its tile size everywhere the verdict is shown",
     )
-    k.add_argument(
-        "--alpha", type=_alpha, default=DEFAULT_ALPHA, help="false-positive rate of either verdict (default 0.01)"
-    )
+    add_options(k, ("alpha",), defaults={"alpha": DEFAULT_ALPHA})
     budget = k.add_mutually_exclusive_group()
-    budget.add_argument(
-        "--max-passes",
-        type=jobs.positive_int,
-        metavar="N",
-        help=f"the most passes a side (default {DEFAULT_MAX_PASSES})",
+    add_options(
+        budget,
+        ("max_passes", "max_seconds"),
+        helps={
+            "max_passes": f"the most passes a side (default {DEFAULT_MAX_PASSES})",
+            "max_seconds": "the most render seconds, both sides together",
+        },
     )
-    budget.add_argument("--max-seconds", type=float, metavar="S", help="the most render seconds, both sides together")
-    k.add_argument("--spp", type=jobs.positive_int, default=1, help="samples per pixel per pass (default 1)")
-    k.add_argument("--tile", type=jobs.positive_int, default=16, help="finest tile edge in pixels (default 16)")
-    k.add_argument("--resolution", type=jobs.positive_int, nargs=2, metavar=("W", "H"), help="override the resolution")
-    k.add_argument("--device", default="CPU", choices=jobs.DEVICES, help="Cycles device (default CPU)")
-    k.add_argument("--sampling-pattern", metavar="PATTERN", help="Cycles sampling pattern (as render)")
+    add_options(
+        k,
+        ("spp", "tile", "resolution", "device", "sampling_pattern", "lobes"),
+        defaults={"spp": 1, "tile": 16, "device": "CPU", "lobes": ()},
+        helps={"lobes": "also render light components and light groups (as render --lobes); the report tests each"},
+    )
     k.add_argument("--unpaired", action="store_true", help="disjoint seeds even on one build (an A/A check)")
     add_cluster_arguments(k)
-    k.add_argument(
-        "--lobes",
-        type=jobs.lobes_arg,
-        default=(),
-        metavar="LIST",
-        help="also render light components and light groups (as render --lobes); the report tests each",
-    )
     k.add_argument("--resume", action="store_true", help="continue a stopped check in --out")
     k.add_argument("--json-progress", action="store_true", help="one JSON line per event on stdout, for programs")
     k.add_argument("--out", required=True, metavar="DIR", help="folder for both sides' statistics and the report")
@@ -209,7 +184,10 @@ def build_parser() -> argparse.ArgumentParser:
         else:
             c.add_argument("run", metavar="RUN", help="a statistics file with at least 4 passes")
         c.add_argument(
-            "--alpha", type=_alpha, default=DEFAULT_ALPHA, help="false-positive rate of a biased verdict (default 0.01)"
+            "--alpha",
+            type=argparse_type(OPTIONS["alpha"]),
+            default=DEFAULT_ALPHA,
+            help="false-positive rate of a biased verdict (default 0.01)",
         )
         c.add_argument(
             "--pvalue-method",
@@ -292,7 +270,7 @@ def build_parser() -> argparse.ArgumentParser:
         a.add_argument("suite_file", metavar="SUITE", help="a suite file (.toml), or `builtin`")
         a.add_argument("--refs", metavar="DIR", help="the references' folder (default for `builtin`: shipped ones)")
         a.add_argument("--blender", metavar="PATH", help="render with this Blender executable instead of bpy")
-        a.add_argument("--device", choices=jobs.DEVICES, help="every case on this device instead of its own")
+        a.add_argument("--device", choices=DEVICES, help="every case on this device instead of its own")
         a.add_argument("--filter", nargs="+", metavar="PATTERN", help="only the cases whose names match")
         a.add_argument("--json-progress", action="store_true", help="one JSON line per event on stdout")
         if action == "bless":
@@ -400,12 +378,14 @@ def cmd_render(args) -> int:
         if args.serve:
             raise BatchError("--serve renders in this process: it does not go with --workers or --scheduler")
         from ..jobs.distributed import render_distributed
+        from ..jobs.side import cluster
 
-        render_distributed(job, progress, workers=args.workers, scheduler=args.scheduler, chunk=args.chunk)
+        with cluster(args.workers, args.scheduler, work=len(job.seeds)) as where:
+            render_distributed(job, progress, where, chunk=args.chunk)
     elif args.chunk:
         raise BatchError("--chunk goes with --workers or --scheduler")
     elif job.blender:
-        from ..jobs.launch import run_job
+        from ..jobs.side import run_job
 
         run_job(job, progress)
     else:

@@ -12,6 +12,7 @@ Nothing here imports bpy.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import math
@@ -23,8 +24,7 @@ from .._siblings import welch_core as wc
 from ..errors import BatchError
 from ..jobs import protocol
 from ..jobs.job import RenderJob
-from ..jobs.launch import JobProcess, job_command
-from ..jobs.protocol import Exit
+from ..jobs.side import Cluster, Side, cluster
 from ..present.progress import Progress
 
 STATE_FILE = "check.json"
@@ -52,10 +52,9 @@ class CheckJob:
     #: The reference is a finished statistics file (a suite's blessed reference), not rendered: only the test
     #: side renders, and the looks' information fractions count its passes against the reference's fixed ones.
     fixed_reference: bool = False
-    #: Render the passes on a Dask cluster (batch.distributed): local worker processes, or a running cluster.
+    #: Render the passes on a Dask cluster (batch.jobs.distributed): local worker processes, or a running cluster.
     workers: int | None = None
     scheduler: str | None = None
-    threads: int | None = None  # Cycles threads of each render process on the cluster (None: its default)
 
     def plan(self, max_passes: int) -> wc.SequentialPlan:
         return wc.SequentialPlan(
@@ -87,31 +86,23 @@ def sides_identical(reference: RenderJob, test: RenderJob) -> bool:
     return same and reference.seeds == test.seeds
 
 
-@dataclass
-class _Side:
-    name: str
-    job: RenderJob
-    process: JobProcess | None = None
-    passes: int = 0
-    progress: Progress | None = None  # its live line, on a terminal
-    fixed: bool = False  # a finished statistics file: never rendered
-    pool: object = None  # a batch.distributed.PassPool where the passes render on a cluster
-
-
 class Check:
-    """Runs a `CheckJob`; `run()` returns the final `Look` and the final statistics of both sides."""
+    """Runs a `CheckJob` (on `cluster`, a `batch.jobs.side.Cluster`, where given); `run()` returns the final
+    `Look` and the final statistics of both sides."""
 
-    def __init__(self, job: CheckJob, progress):
+    def __init__(self, job: CheckJob, progress, cluster: Cluster | None = None):
         self.job = job
         self.progress = progress
-        self.sides = [_Side("reference", job.reference, fixed=job.fixed_reference), _Side("test", job.test)]
-        if progress.live:
-            for side in self.sides:
-                side.progress = Progress(len(side.job.seeds), label=side.name, live=True)
+
+        def side(name: str, side_job: RenderJob) -> Side:
+            live = Progress(len(side_job.seeds), label=name, live=True) if progress.live else None
+            return Side(name, side_job, live, warn=progress.warning, cluster=cluster)
+
+        self.reference, self.test = side("reference", job.reference), side("test", job.test)
+        self.rendered = [self.test] if job.fixed_reference else [self.reference, self.test]
         self.looks: list[dict] = []
         self.plan = job.plan(job.max_passes) if job.max_passes else None
         self.render_seconds = 0.0
-        self._cluster = None  # a LocalCluster both sides' pools share (--workers)
 
     # -- state on disk ---------------------------------------------------------------------------------------
 
@@ -141,7 +132,7 @@ class Check:
             raise BatchError(f"{path} is not a readable check state ({exc})") from None
         if not isinstance(state, dict) or state.get("format") != "welch-bias-check":
             raise BatchError(f"{path} is not a check state file")
-        for side in self.sides:
+        for side in (self.reference, self.test):
             if state.get(side.name) != side.job.replace(resume=False).to_argv():
                 raise BatchError(f"can't resume {self.job.out}: the {side.name} side was started with other arguments")
         try:
@@ -157,135 +148,36 @@ class Check:
     # -- the sides -------------------------------------------------------------------------------------------
 
     def _start(self) -> None:
-        for side in self.sides:
-            if Path(side.job.out).exists():  # resumed (or fixed): the passes already in the file count
-                side.passes = wc.load_stats(side.job.out, pixels=False).n
-            elif side.fixed:
-                raise BatchError(f"the reference {side.job.out} does not exist")
-            if side.fixed:
-                continue
-            if self.job.workers or self.job.scheduler:
-                side.pool = self._pool(side.job)
-                if side.progress is not None:
-                    side.progress.start(side.passes, side.job.out)
-            else:
-                side.process = JobProcess(job_command(side.job, serve=True), requests=True)
-
-    def _pool(self, job: RenderJob):
-        """A pass pool for one side; with local workers both sides share one cluster (started with the first)."""
-        from ..jobs import distributed
-
-        if self.job.scheduler:
-            return distributed.PassPool(job, scheduler=self.job.scheduler, threads=self.job.threads)
-        if self._cluster is None:
-            self._cluster = distributed.local_cluster(self.job.workers)
-        threads = distributed.local_threads(self.job.workers)
-        return distributed.PassPool(job, scheduler=self._cluster.scheduler_address, threads=threads)
+        if self.job.fixed_reference:
+            if not Path(self.reference.job.out).exists():
+                raise BatchError(f"the reference {self.reference.job.out} does not exist")
+            self.reference.passes = wc.load_stats(self.reference.job.out, pixels=False).n
+        for side in self.rendered:
+            side.start()
 
     def _stop(self) -> None:
-        for side in self.sides:
-            if side.process is not None:
-                side.process.stop()
-        self._close_pools()
-
-    def _close_pools(self) -> None:
-        for side in self.sides:
-            if side.pool is not None:
-                side.pool.close()
-                side.pool = None
-        if self._cluster is not None:
-            self._cluster.close()
-            self._cluster = None
+        for side in self.rendered:
+            side.stop()
 
     def _finish(self) -> None:
-        self._close_pools()
-        for side in self.sides:
-            if side.process is not None:
-                side.process.close_requests()
-        for side in self.sides:
-            if side.process is not None:
-                code = side.process.wait(60)
-                self._relay(side)
-                if code not in (0, None):
-                    self._failed(side, code)
+        for side in self.rendered:
+            side.finish()
 
     def _render_to(self, passes: int) -> None:
         """Both sides up to `passes` passes (at once: the sides share the machine, the chunk takes the longer)."""
         start = time.perf_counter()
-        if self.job.workers or self.job.scheduler:
-            self._render_on_pools(passes)
-            self.render_seconds += time.perf_counter() - start
-            return
-        waiting = []
-        for side in self._rendered():
-            if side.passes < passes:
-                side.process.request(passes - side.passes)
-                waiting.append(side)
+        for side in self.rendered:
+            side.request(passes)
+        waiting = list(self.rendered)
         while waiting:
-            for side in list(waiting):
-                saved = self._relay(side)
-                if saved is not None:
-                    side.passes = saved
-                    waiting.remove(side)
-                    continue
-                code = side.process.popen.poll()
-                if code is not None:
-                    self._relay(side)
-                    self._failed(side, code)
+            waiting = [side for side in waiting if not side.poll()]
             if waiting:
                 time.sleep(0.005)
         self.render_seconds += time.perf_counter() - start
 
-    def _render_on_pools(self, passes: int) -> None:
-        """Both sides up to `passes` passes on the cluster: every chunk of both submitted first, so they render at
-        once; each side's file saved in seed order, as one process saves it."""
-        from ..jobs import distributed
-
-        waiting = [side for side in self._rendered() if side.passes < passes]
-        for side in waiting:
-            seeds = list(side.job.seeds[side.passes : passes])
-            size = distributed.default_chunk(len(seeds), side.pool.parallelism() or 1)
-            for first in range(0, len(seeds), size):
-                side.pool.submit(seeds[first : first + size])
-        for side in waiting:
-            stats = wc.load_stats(side.job.out) if Path(side.job.out).exists() else None
-            for result in side.pool:
-                stats = distributed.accumulate(stats, result, side.job)
-                for message in result.warnings:
-                    self.progress.warning(f"{side.name}: {result.worker}: {message}")
-                if side.progress is not None:
-                    for seed in result.seeds:
-                        side.progress.pass_done(seed, result.wall_seconds / max(len(result.seeds), 1))
-            side.passes = distributed.save_in_seed_order(side.job, stats).n
-
-    def _rendered(self) -> list[_Side]:
-        return [side for side in self.sides if not side.fixed]
-
     def _fraction(self, passes: int) -> float:
-        fixed = self.sides[0].passes if self.job.fixed_reference else None
+        fixed = self.reference.passes if self.job.fixed_reference else None
         return wc.looks.information_fraction(passes, self.plan.max_passes, fixed)
-
-    def _relay(self, side: _Side) -> int | None:
-        """Show the side's events (its passes on its own live line, where there is a terminal); the pass count of
-        its last `Saved` event, if any arrived."""
-        saved = None
-        for event in side.process.drain():
-            if isinstance(event, protocol.Saved):
-                saved = event.passes
-            elif isinstance(event, protocol.Warned):
-                self.progress.warning(f"{side.name}: {event.message}")
-            elif side.progress is not None and isinstance(event, protocol.Started | protocol.PassDone):
-                side.progress.emit(event)
-        return saved
-
-    def _failed(self, side: _Side, code: int) -> None:
-        reason = side.process.error_message() or "no error message"
-        self._stop()
-        if code == Exit.USAGE:
-            raise BatchError(f"{side.name} side: {reason}")
-        if protocol.interrupted(code):
-            raise KeyboardInterrupt
-        raise RuntimeError(f"the {side.name} side's render failed (exit code {code}): {reason}")
 
     def _load(self) -> tuple[wc.TileStats, wc.TileStats]:
         return wc.load_stats(self.job.reference.out), wc.load_stats(self.job.test.out)
@@ -295,7 +187,7 @@ class Check:
     def _fix_budget(self) -> None:
         """A time budget becomes a pass budget once the first chunk shows the speed (the looks' information
         fractions need it, and it must not change afterwards)."""
-        done = min(s.passes for s in self._rendered())
+        done = min(s.passes for s in self.rendered)
         seconds_per_pass = self.render_seconds / max(done, 1)
         left = self.job.max_seconds - self.render_seconds
         passes = done + int(left / max(seconds_per_pass, 1e-9))
@@ -317,7 +209,7 @@ class Check:
         return result
 
     def _loop(self):
-        done = max([look["passes"] for look in self.looks] + [min(s.passes for s in self._rendered())])
+        done = max([look["passes"] for look in self.looks] + [min(s.passes for s in self.rendered)])
         fractions = [look["fraction"] for look in self.looks]
         if self.looks and self.looks[-1]["verdict"] is not None:
             # Decided already (a resumed check): answer with that decision; another look would be one more peek.
@@ -391,15 +283,20 @@ def _json_default(value):
     raise TypeError(f"not JSON: {type(value).__name__}")
 
 
-def run_check(job: CheckJob, progress) -> tuple[wc.Verdict, dict]:
+def run_check(job: CheckJob, progress, where: Cluster | None = None) -> tuple[wc.Verdict, dict]:
     """Run `job` and write its report into ``job.out``: the verdict and the report's content. The verdict and its
-    numbers are the last look's; the map and the tiles are the final passes' statistics (descriptive)."""
+    numbers are the last look's; the map and the tiles are the final passes' statistics (descriptive). The passes
+    render on `where` (a cluster a suite shares between its cases), else where the job's `workers` or
+    `scheduler` say."""
     from ..present.pipeline import present
     from ..present.summary import check_record
 
     Path(job.out).mkdir(parents=True, exist_ok=True)
-    check = Check(job, progress)
-    look, ref, test = check.run()
+    work = 2 * (job.max_passes or wc.looks.FIRST_LOOK)  # the most passes both sides render
+    local = cluster(job.workers, job.scheduler, work)
+    with contextlib.nullcontext(where) if where is not None else local as place:
+        check = Check(job, progress, place)
+        look, ref, test = check.run()
     comparison = wc.compare(ref, test, job.alpha, tolerance=job.tolerance)
     layers = (wc.load_layers(job.reference.out, pixels=False), wc.load_layers(job.test.out, pixels=False))
     record = check_record(job, check.looks, check.plan.max_passes, look)
@@ -415,12 +312,10 @@ def check_job_from_args(args) -> CheckJob:
     """The check the command line describes, refused in one line where it can't work, before anything renders."""
     if args.max_passes is not None and args.max_seconds is not None:
         raise BatchError("give --max-passes or --max-seconds, not both")
-    if args.max_passes is not None and args.max_passes < wc.looks.FIRST_LOOK:
-        raise BatchError(f"--max-passes must be at least {wc.looks.FIRST_LOOK}, got {args.max_passes}")
-    if args.max_seconds is not None and not args.max_seconds > 0:
-        raise BatchError(f"--max-seconds must be a positive number of seconds, got {args.max_seconds:g}")
     if args.blend is not None and args.scene is not None:
         raise BatchError(f"give a .blend file or a built-in scene, not both ({args.blend}, {args.scene!r})")
+    if args.lobes and (args.workers or args.scheduler):
+        raise BatchError("--lobes does not go with --workers or --scheduler yet: render the layers in one process")
     if args.blend is None and args.scene is None:
         raise BatchError("no scene to check: give a .blend file or a built-in scene (--scene)")
     for option, path in (("SCENE.blend", args.blend), ("--test-blend", args.test_blend)):
@@ -481,4 +376,6 @@ def check_job_from_args(args) -> CheckJob:
         tolerance=args.tolerance,
         equivalence_tile=args.equivalence_tile,
         resume=args.resume,
+        workers=args.workers,
+        scheduler=args.scheduler,
     )

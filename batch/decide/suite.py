@@ -37,7 +37,6 @@ Nothing here imports bpy: the renders run in their own processes through the ren
 
 from __future__ import annotations
 
-import contextlib
 import fnmatch
 import json
 import os
@@ -51,8 +50,9 @@ from pathlib import Path
 
 from .._siblings import welch_core as wc
 from ..errors import BatchError
-from ..jobs.job import DEVICES, NO_GPU_MESSAGE, RenderJob, parse_tolerance
-from ..jobs.overrides import parse_override
+from ..jobs import options
+from ..jobs.job import BUILTIN_SCENES, NO_GPU_MESSAGE, RenderJob
+from ..jobs.side import cluster as side_cluster
 from .check import CheckJob, run_check
 
 #: The suite that ships with the tool: one minimal scene per Cycles feature, and its references.
@@ -133,117 +133,116 @@ def suite_path(name: str) -> Path:
 
 
 def load_suite(name: str) -> Suite:
-    """Read and check a suite file; any problem raises BatchError with one line naming the file and the case."""
+    """Read and check a whole suite file before anything renders: every problem (unknown keys or scenes, bad
+    values or overrides, names used twice or unsafe as file names) is collected, and raised as one BatchError
+    that lists them all, each naming the file and the case."""
     path = suite_path(name)
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
-        raise BatchError(f"suite file {path} does not exist") from None
+        raise BatchError(f"{path}: no such suite file") from None
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise BatchError(f"suite file {path} is not readable TOML: {exc}") from None
+        raise BatchError(f"{path}: not readable TOML: {exc}") from None
+    problems: list[str] = []
     unknown = sorted(set(data) - {"suite", "defaults", "case"})
     if unknown:
-        raise BatchError(f"{path}: unknown table [{unknown[0]}] (a suite has [suite], [defaults] and [[case]])")
+        problems.append(f"unknown table [{unknown[0]}] (a suite has [suite], [defaults] and [[case]])")
     header = data.get("suite", {})
+    if not isinstance(header, dict):
+        header, _ = {}, problems.append("[suite] must be a table")
     if set(header) - {"name", "alpha"}:
-        raise BatchError(f"{path}: unknown key {sorted(set(header) - {'name', 'alpha'})[0]!r} in [suite]")
-    alpha = header.get("alpha", 0.01)
-    if not isinstance(alpha, float) or not 0 < alpha < 1:
-        raise BatchError(f"{path}: [suite] alpha must be a number in (0, 1), got {alpha!r}")
+        problems.append(f"unknown key {sorted(set(header) - {'name', 'alpha'})[0]!r} in [suite]")
+    alpha = 0.01
+    try:
+        alpha = options.probability("[suite] alpha", header.get("alpha", 0.01))
+    except BatchError as exc:
+        problems.append(str(exc))
+    suite_name = header.get("name", path.stem)
+    try:
+        suite_name = options.text("[suite] name", suite_name)
+    except BatchError as exc:
+        problems.append(str(exc))
     defaults = data.get("defaults", {})
     raw_cases = data.get("case", [])
-    if not isinstance(raw_cases, list) or not raw_cases:
-        raise BatchError(f"{path}: no [[case]] in the suite")
-    cases, seen = [], set()
+    if not isinstance(defaults, dict):
+        defaults, _ = {}, problems.append("[defaults] must be a table")
+    if not isinstance(raw_cases, list) or not raw_cases or not all(isinstance(c, dict) for c in raw_cases):
+        raise BatchError(f"{path}: " + "; ".join([*problems, "no [[case]] in the suite"]))
+    cases, seen = [], {}
     for index, raw in enumerate(raw_cases):
         entry = {**defaults, **raw}
-        label = f"{path}: case {entry.get('name', index + 1)!r}"
-        case = _case(entry, label, path.parent)
-        if case.name in seen:
-            raise BatchError(f"{label}: the name is used twice")
-        seen.add(case.name)
-        cases.append(case)
-    return Suite(path, str(header.get("name", path.stem)), alpha, tuple(cases))
+        label = f"case {entry.get('name', index + 1)!r}"
+        name = entry.get("name")
+        if isinstance(name, str) and name.lower() in seen:  # a case-insensitive file system would mix the two
+            problems.append(f"{label}: the name is used twice (also case {seen[name.lower()]!r})")
+        elif isinstance(name, str):
+            seen[name.lower()] = name
+        case = _case(entry, label, path.parent, problems)
+        if case is not None:
+            cases.append(case)
+    if problems:
+        count = f"{len(problems)} problems" if len(problems) > 1 else "a problem"
+        raise BatchError(f"{path}: {count}, nothing rendered: " + "; ".join(problems))
+    return Suite(path, str(suite_name), alpha, tuple(cases))
 
 
-def _case(entry: dict, label: str, folder: Path) -> Case:
+def _case(entry: dict, label: str, folder: Path, problems: list[str]) -> Case | None:
+    """The case `entry` describes, or None with its problems added to `problems`."""
+    found = len(problems)
     unknown = sorted(set(entry) - _CASE_KEYS)
     if unknown:
-        raise BatchError(f"{label}: unknown key {unknown[0]!r}")
+        problems.append(f"{label}: unknown key {', '.join(repr(k) for k in unknown)}")
     name = entry.get("name")
-    if not isinstance(name, str) or not _NAME.match(name):
-        raise BatchError(f"{label}: 'name' must be letters, digits, '-', '_' or '.', got {name!r}")
+    if not isinstance(name, str) or not _NAME.fullmatch(name) or len(name) > 100:
+        problems.append(f"{label}: 'name' must be letters, digits, '-', '_' or '.' (a file name), got {name!r}")
     if ("scene" in entry) == ("blend" in entry):
-        raise BatchError(f"{label}: give 'scene' (a built-in scene) or 'blend' (a .blend file), one of them")
-    blend = None
+        problems.append(f"{label}: give 'scene' (a built-in scene) or 'blend' (a .blend file), one of them")
+    scene, blend = entry.get("scene"), None
+    if scene is not None and scene not in BUILTIN_SCENES:
+        problems.append(f"{label}: 'scene' {scene!r} is not a built-in scene (one of {', '.join(BUILTIN_SCENES)})")
     if "blend" in entry:
-        blend = str((folder / _typed(entry, "blend", str, label)).resolve())
-        if not Path(blend).is_file():
-            raise BatchError(f"{label}: blend file {blend} does not exist")
-    overrides = _typed(entry, "set", list, label, [])
-    for text in overrides:
+        if not isinstance(entry["blend"], str):
+            problems.append(f"{label}: 'blend' must be a path, got {entry['blend']!r}")
+        else:
+            blend = str((folder / entry["blend"]).resolve())
+            if not Path(blend).is_file():
+                problems.append(f"{label}: blend file {blend} does not exist")
+    values = options.from_mapping(entry, label, problems)
+    test_pattern = entry.get("test_sampling_pattern")
+    if test_pattern is not None:
         try:
-            parse_override(text)
-        except (BatchError, TypeError) as exc:
-            raise BatchError(f"{label}: 'set' {text!r}: {exc}") from None
-    resolution = entry.get("resolution")
-    if resolution is not None and not (
-        isinstance(resolution, list) and len(resolution) == 2 and all(_positive(v) for v in resolution)
-    ):
-        raise BatchError(f"{label}: 'resolution' must be [width, height] in pixels, got {resolution!r}")
-    numbers = {key: _typed(entry, key, int, label, default) for key, default in (("spp", 1), ("tile", 16))}
-    passes = _typed(entry, "passes", int, label, 64)
-    if passes < wc.looks.FIRST_LOOK or any(v < 1 for v in numbers.values()):
-        raise BatchError(f"{label}: 'spp' and 'tile' must be positive and 'passes' at least {wc.looks.FIRST_LOOK}")
-    seconds = entry.get("seconds")
-    if seconds is not None and (isinstance(seconds, bool) or not isinstance(seconds, int | float) or seconds <= 0):
-        raise BatchError(f"{label}: 'seconds' must be a positive number, got {seconds!r}")
-    devices = tuple(_typed(entry, "devices", list, label, ["CPU"]))
-    bad = [d for d in devices if d not in DEVICES]
-    if not devices or bad:
-        raise BatchError(f"{label}: 'devices' must be some of {', '.join(DEVICES)}, got {list(devices)!r}")
-    tolerance = entry.get("tolerance")
-    if tolerance is not None:
-        try:
-            tolerance = parse_tolerance(str(tolerance))
+            test_pattern = options.text(f"{label}: 'test_sampling_pattern'", test_pattern)
         except BatchError as exc:
-            raise BatchError(f"{label}: 'tolerance' {exc}") from None
+            problems.append(str(exc))
     expect = entry.get("expect", "same")
     if expect not in EXPECTATIONS:
-        raise BatchError(f"{label}: 'expect' must be 'same' or 'biased', got {expect!r}")
+        problems.append(f"{label}: 'expect' must be 'same' or 'biased', got {expect!r}")
+    texts = {}
+    for key in ("why", "planted"):
+        if key in entry and not isinstance(entry[key], str):
+            problems.append(f"{label}: {key!r} must be text, got {entry[key]!r}")
+        texts[key] = entry.get(key) if isinstance(entry.get(key), str) else None
+    if len(problems) > found:
+        return None
     return Case(
         name=name,
-        scene=_typed(entry, "scene", str, label, None),
+        scene=scene,
         blend=blend,
-        blend_scene=_typed(entry, "blend_scene", str, label, None),
-        overrides=tuple(overrides),
-        resolution=tuple(resolution) if resolution else None,
-        passes=passes,
-        seconds=float(seconds) if seconds is not None else None,
-        devices=devices,
-        tolerance=tolerance,
+        blend_scene=values.get("blend_scene"),
+        overrides=values.get("overrides", ()),
+        resolution=values.get("resolution"),
+        spp=values.get("spp", 1),
+        tile=values.get("tile", 16),
+        passes=values.get("max_passes", 64),
+        seconds=values.get("max_seconds"),
+        devices=values.get("devices", ("CPU",)),
+        tolerance=values.get("tolerance"),
         expect=expect,
-        sampling_pattern=_typed(entry, "sampling_pattern", str, label, None),
-        test_sampling_pattern=_typed(entry, "test_sampling_pattern", str, label, None),
-        why=_typed(entry, "why", str, label, ""),
-        planted=_typed(entry, "planted", str, label, None),
-        **numbers,
+        sampling_pattern=values.get("sampling_pattern"),
+        test_sampling_pattern=test_pattern,
+        why=texts["why"] or "",
+        planted=texts["planted"],
     )
-
-
-def _positive(value) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool) and value > 0
-
-
-def _typed(entry: dict, key: str, kind: type, label: str, default=None):
-    value = entry.get(key, default)
-    if value is default:
-        return value
-    if not isinstance(value, kind) or isinstance(value, bool) and kind is not bool:
-        raise BatchError(f"{label}: {key!r} must be a {kind.__name__}, got {value!r}")
-    if kind is list and not all(isinstance(v, str) for v in value):
-        raise BatchError(f"{label}: {key!r} must be a list of strings, got {value!r}")
-    return value
 
 
 # -- references ---------------------------------------------------------------------------------------------------
@@ -273,7 +272,7 @@ def bless(suite: Suite, cases: list[Case], refs: Path, progress_factory, force: 
     """Render the reference of each case into `refs`. A case that has one already gets a new render on new
     seeds, compared with the stored one: where they differ significantly the old one stays (unless `force`), and
     the comparison's report is kept next to it: a silent re-bless is how thresholds creep."""
-    from ..jobs.launch import run_job
+    from ..jobs.side import run_job
 
     refs.mkdir(parents=True, exist_ok=True)
     done = []
@@ -401,7 +400,7 @@ def run_suite(suite: Suite, cases: list[Case], refs: Path, out: Path, progress_f
         if taken:
             raise BatchError(f"{taken[0]} already exists: pass --resume to continue the run, or another --out")
     workers, scheduler = cluster
-    with _cluster(workers, scheduler) as where:
+    with side_cluster(workers, scheduler) as where:  # one cluster for every case
         outcomes = []
         for number, (case, dev) in enumerate(runs, 1):
             say(f"suite run: {number}/{len(runs)} {case.name} on {dev}")
@@ -411,19 +410,6 @@ def run_suite(suite: Suite, cases: list[Case], refs: Path, out: Path, progress_f
             say(f"  {outcome.status}: {outcome.message}")
             outcomes.append(outcome)
     return outcomes
-
-
-@contextlib.contextmanager
-def _cluster(workers: int | None, scheduler: str | None):
-    """{"scheduler", "threads"} for the cases' checks: a LocalCluster started once for all cases with `workers`,
-    the given scheduler, or nothing (each case renders in its own processes)."""
-    if workers:
-        from ..jobs import distributed
-
-        with distributed.local_cluster(workers) as local:
-            yield {"scheduler": local.scheduler_address, "threads": distributed.local_threads(workers)}
-    else:
-        yield {"scheduler": scheduler} if scheduler else {}
 
 
 def _run_case(
@@ -444,11 +430,10 @@ def _run_case(
         tolerance=case.tolerance,
         resume=resume and (folder / "check.json").exists(),
         fixed_reference=True,
-        **where,
     )
     start = time.perf_counter()
     try:
-        verdict, summary = run_check(job, progress_factory(count))
+        verdict, summary = run_check(job, progress_factory(count), where)
     except BatchError as exc:
         status = "skipped" if NO_GPU_MESSAGE in str(exc) else "error"
         if status == "skipped":

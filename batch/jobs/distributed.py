@@ -26,7 +26,6 @@ from __future__ import annotations
 import logging
 import math
 import os
-import queue
 import shutil
 import signal
 import socket
@@ -44,10 +43,10 @@ from .._siblings import welch_core as wc
 from ..errors import BatchError
 from . import protocol
 from .job import RenderJob
-from .launch import THREADS_ENV, JobProcess, job_command
+from .launch import THREADS_ENV
 from .lock import OutputLock, process_alive
-from .protocol import ChunkRequest, Exit
 from .seeds import format_seeds
+from .side import Cluster, Side
 
 #: Chunks per worker thread when no chunk size is given: enough to even out workers of unequal speed and to lose
 #: at most about a quarter of a worker's share when it dies; and at most `MAX_CHUNK` passes, so checkpoints come
@@ -59,8 +58,10 @@ MAX_CHUNK = 64
 #: scheduler's `allowed_failures`, for a cluster started here).
 RETRIES = 1
 
-#: How long to wait for the scheduler of an existing cluster to answer.
-CONNECT_TIMEOUT = "30s"
+#: How long to wait for the scheduler of an existing cluster to answer: a TCP connection first, then Dask's
+#: handshake (a port that accepts connections and never answers fails after the second).
+CONNECT_SECONDS = 5.0
+CONNECT_TIMEOUT = "20s"
 
 #: Worker-local folders of the serving render processes (chunk files), named by the worker's PID so a later
 #: worker can remove those of dead ones.
@@ -141,8 +142,8 @@ class ChunkError:
 
 
 class _Server:
-    """A worker thread's serving render process for one pool's job, with its folder for chunk files. `chunk` and
-    `rendered` say what it is doing (`server_status`)."""
+    """A worker thread's render side (`batch.jobs.side.Side`, serving) for one pool's job, with its folder for
+    chunk files. `chunk` and `rendered` say what it is doing (`server_status`)."""
 
     def __init__(self, pool: str, job: RenderJob, threads: int | None):
         self.pool = pool
@@ -151,7 +152,9 @@ class _Server:
         if threads:
             env[THREADS_ENV] = str(threads)
         served = job.replace(out=os.path.join(self.folder, "served.npz"), resume=False)
-        self.process = JobProcess(job_command(served, base_env=env, serve=True), requests=True)
+        self.side = Side("worker", served, env=env)
+        self.side.start()
+        self.process = self.side.process
         self.lock = threading.Lock()
         self.chunk: tuple[int, ...] = ()
         self.rendered = 0
@@ -160,49 +163,37 @@ class _Server:
     def alive(self) -> bool:
         return self.process.popen.poll() is None
 
+    def _count(self, event) -> None:
+        if isinstance(event, protocol.PassDone):
+            self.rendered += 1
+
     def render(self, seeds: tuple[int, ...], worker: str) -> ChunkResult | ChunkError:
         """Render exactly `seeds`; raise RenderProcessDied if the process ends before it has saved them."""
         self._chunks += 1
         out = os.path.join(self.folder, f"chunk-{self._chunks}.npz")
-        seconds: dict[int, float] = {}
-        warnings: list[str] = []
         start = time.perf_counter()
         self.chunk, self.rendered = seeds, 0
-        self.process.request_chunk(ChunkRequest(seeds, out))
         try:
-            while True:
-                try:
-                    event = self.process.events.get(timeout=0.05)
-                except queue.Empty:
-                    code = self.process.poll()  # not None once the process has ended and all its output is read
-                    if code is not None and self.process.events.empty():
-                        return self._ended(code, seeds, out, worker)
-                    continue
-                if isinstance(event, protocol.PassDone):
-                    seconds[event.seed] = event.seconds
-                    self.rendered += 1
-                elif isinstance(event, protocol.Warned):
-                    warnings.append(event.message)
-                elif isinstance(event, protocol.Saved) and event.out == out:
-                    break
+            events = self.side.render_chunk(seeds, out, self._count)
+        except BatchError as exc:  # the job stopped on its input: not worth a retry
+            _remove(out)
+            return ChunkError(seeds, str(exc).removeprefix("worker side: "), worker)
+        except (RuntimeError, KeyboardInterrupt) as exc:
+            _remove(out)  # the passes saved before a failure: the chunk is rendered again, or the run stops
+            raise RenderProcessDied(
+                f"the render process (PID {self.process.popen.pid}) on {worker} ended after {self.rendered} of the "
+                f"{len(seeds)} passes of seeds {format_seeds(seeds)}: {exc}"
+            ) from None
         finally:
             self.chunk = ()
         try:
             stats = wc.load_stats(out)
         finally:
             _remove(out)
+        seconds = {e.seed: e.seconds for e in events if isinstance(e, protocol.PassDone)}
+        warnings = [e.message for e in events if isinstance(e, protocol.Warned)]
         passes = [seconds.get(seed, math.nan) for seed in stats.seeds]
         return ChunkResult.from_stats(stats, passes, time.perf_counter() - start, warnings, worker)
-
-    def _ended(self, code: int, seeds: tuple[int, ...], out: str, worker: str) -> ChunkError:
-        _remove(out)  # the passes saved before a failure: the chunk is rendered again, or the run stops
-        reason = self.process.error_message() or "no error message"
-        if code == Exit.USAGE:  # the job stopped on its input: not worth a retry
-            return ChunkError(seeds, reason, worker)
-        raise RenderProcessDied(
-            f"the render process (PID {self.process.popen.pid}) on {worker} ended with exit code {code} after "
-            f"{self.rendered} of the {len(seeds)} passes of seeds {format_seeds(seeds)}: {reason}"
-        )
 
     def close(self, kill: bool = False, wait: float = CLOSE_WAIT) -> None:
         """End the process and remove its folder. With `kill` it gets SIGTERM (it stops after its current pass);
@@ -317,6 +308,24 @@ def local_threads(workers: int) -> int:
     return max(1, cores // workers)
 
 
+def check_scheduler(address: str) -> str:
+    """`address` of a Dask scheduler that answers, or BatchError in one line: a scheme Dask does not speak
+    (``http://``, the dashboard's), no port, or nothing listening there (within `CONNECT_SECONDS`)."""
+    text = address.strip()
+    scheme, _, rest = text.rpartition("://")
+    if scheme and scheme not in ("tcp", "tls"):
+        raise BatchError(f"--scheduler {address}: Dask schedulers speak tcp:// or tls://, not {scheme}://")
+    host, _, port = rest.rpartition(":")
+    if not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise BatchError(f"--scheduler {address}: give HOST:PORT, e.g. tcp://head:8786")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=CONNECT_SECONDS):
+            pass
+    except OSError as exc:
+        raise BatchError(f"--scheduler {address}: nothing answers there ({exc.strerror or exc})") from None
+    return text if scheme else f"tcp://{text}"
+
+
 def local_cluster(workers: int):
     """A Dask LocalCluster of `workers` processes of one thread each on this machine, as ``--workers`` starts it
     (``check`` can give both sides' pools its address, with ``threads=local_threads(workers)``)."""
@@ -338,46 +347,31 @@ def default_chunk(passes: int, parallelism: int) -> int:
 class PassPool:
     """Render chunks of one job's seeds on a Dask cluster and hand back each chunk's passes as it finishes.
 
-    ``PassPool(job, workers=2)`` starts a LocalCluster of 2 worker processes of one thread each on this machine;
-    ``PassPool(job, scheduler="tcp://host:8786")`` uses an existing cluster. `submit` queues a chunk of seeds, at
-    any time, also while iterating (render-until-decided adds chunks as it looks at the data). Iterating yields
-    a `ChunkResult` for each finished chunk in the order they finish, every seed at most once, and ends when no
-    chunk is outstanding. A chunk whose render process or worker dies is run once more; a job error raises
-    BatchError naming the worker; a chunk that fails twice raises ChunkFailed. `cancel` drops the outstanding
-    chunks and stops the job's render processes; `close` (or the end of a ``with``) ends the render processes and
-    shuts down what the pool started.
+    ``PassPool(job, cluster)`` renders on `cluster` (a `batch.jobs.side.Cluster`: the address of a scheduler,
+    of a LocalCluster ``batch.jobs.side.cluster`` started or of a running cluster). `submit` queues a chunk of
+    seeds, at any time, also while iterating (render-until-decided adds chunks as it looks at the data).
+    Iterating yields a `ChunkResult` for each finished chunk in the order they finish, every seed at most once,
+    and ends when no chunk is outstanding. A chunk whose render process or worker dies is run once more; a job
+    error raises BatchError naming the worker; a chunk that fails twice raises ChunkFailed. `cancel` drops the
+    outstanding chunks and stops the job's render processes; `close` (or the end of a ``with``) ends the render
+    processes and the client.
 
     Parameters
     ----------
     job : RenderJob
         The job whose seeds are rendered (`submit` takes only seeds of `job.seeds`); `job.out` is not written. A
         relative .blend (or Blender) path is made absolute: every worker must reach the file at that path.
-    workers : int, optional
-        Start a LocalCluster with this many worker processes.
-    scheduler : str, optional
-        Address of an existing cluster's scheduler (exactly one of `workers` and `scheduler`).
-    threads : int, optional
-        Cycles CPU threads of each render process; default: this machine's cores divided among `workers`, or
-        Cycles' own choice (all cores) on an existing cluster.
+    cluster : Cluster
+        Where: the scheduler's address and the Cycles CPU threads of each render process (None: Cycles' own
+        choice, all cores).
     resources : dict, optional
         Dask worker resources a chunk needs, e.g. ``{"GPU": 1}`` on a cluster whose GPU workers were started with
         ``--resources GPU=1`` (then only they render).
     """
 
-    def __init__(
-        self,
-        job: RenderJob,
-        workers: int | None = None,
-        scheduler: str | None = None,
-        threads: int | None = None,
-        resources: dict | None = None,
-    ):
-        if (workers is None) == (scheduler is None):
-            raise BatchError("give the number of local workers or the address of a scheduler, not both or neither")
-        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
-            raise BatchError(f"--workers must be a positive integer, got {workers!r}")
+    def __init__(self, job: RenderJob, cluster: Cluster, resources: dict | None = None):
         if getattr(job, "lobes", ()):
-            # A chunk would have to carry its layers (batch.run does not render them for a served chunk yet).
+            # A chunk would have to carry its layers (batch.blender.run does not render them for a served chunk).
             raise BatchError("--lobes does not go with --workers or --scheduler yet: render the layers in one process")
         distributed = _distributed()
         # Paths as the workers must find them: a worker's folder is not the client's.
@@ -388,17 +382,11 @@ class PassPool:
         self.job = job
         self.token = uuid.uuid4().hex[:12]
         self.resources = resources
-        self.cluster = None
-        if scheduler is not None:
-            self.threads = threads
-            try:
-                self.client = distributed.Client(scheduler, timeout=CONNECT_TIMEOUT, set_as_default=False)
-            except (OSError, TimeoutError, ValueError) as exc:
-                raise BatchError(f"can't reach the Dask scheduler at {scheduler}: {exc}") from None
-        else:
-            self.threads = threads or local_threads(workers)
-            self.cluster = local_cluster(workers)
-            self.client = distributed.Client(self.cluster, set_as_default=False)
+        self.threads = cluster.threads
+        try:
+            self.client = distributed.Client(cluster.address, timeout=CONNECT_TIMEOUT, set_as_default=False)
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise BatchError(f"can't reach the Dask scheduler at {cluster.address}: {exc}") from None
         self._as_completed = distributed.as_completed(loop=self.client.loop)
         self._pending: dict = {}  # future -> its seeds
         self._submitted: set[int] = set()
@@ -495,8 +483,6 @@ class PassPool:
                 self.client.run(close_servers, self.token, on_error="ignore")
         finally:
             self.client.close()
-            if self.cluster is not None:
-                self.cluster.close()
 
 
 # -- a whole run ----------------------------------------------------------------------------------------------
@@ -505,10 +491,8 @@ class PassPool:
 def render_distributed(
     job: RenderJob,
     progress,  # a batch.present.progress.Progress, or anything with its methods
-    workers: int | None = None,
-    scheduler: str | None = None,
+    cluster: Cluster,
     chunk: int | None = None,
-    threads: int | None = None,
     resources: dict | None = None,
 ) -> wc.TileStats | None:
     """Render every seed of `job` not yet in its statistics file on a Dask cluster, as `batch.run.render_run`
@@ -517,8 +501,8 @@ def render_distributed(
     checkpoints every `job.checkpoint_every` passes as chunks arrive, and on Ctrl-C or SIGTERM the passes that
     arrived are saved and KeyboardInterrupt is raised.
 
-    `workers`, `scheduler`, `threads` and `resources` are those of `PassPool`; `chunk` is the passes per chunk
-    (default `default_chunk`). Returns the statistics (None when every pass was skipped).
+    `cluster` and `resources` are those of `PassPool`; `chunk` is the passes per chunk (default `default_chunk`).
+    Returns the statistics (None when every pass was skipped).
     """
     if chunk is not None and (isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1):
         raise BatchError(f"--chunk must be a positive integer, got {chunk!r}")
@@ -531,7 +515,7 @@ def render_distributed(
         todo = [seed for seed in job.seeds if seed not in done]
         progress.start(len(job.seeds) - len(todo), job.out)
         if todo:
-            stats = _render(job, todo, stats, progress, workers, scheduler, chunk, threads, resources)
+            stats = _render(job, todo, stats, progress, cluster, chunk, resources)
     progress.finished(job.out, stats.n if stats is not None else 0)
     return stats
 
@@ -549,9 +533,9 @@ def _resumed(job: RenderJob) -> wc.TileStats | None:
     return stats
 
 
-def _render(job, todo, stats, progress, workers, scheduler, chunk, threads, resources) -> wc.TileStats | None:
-    with PassPool(job, workers, scheduler, threads, resources) as pool, _SigtermAsInterrupt():
-        size = chunk or default_chunk(len(todo), pool.parallelism() or workers or 1)
+def _render(job, todo, stats, progress, cluster, chunk, resources) -> wc.TileStats | None:
+    with PassPool(job, cluster, resources) as pool, _SigtermAsInterrupt():
+        size = chunk or default_chunk(len(todo), pool.parallelism() or 1)
         for start in range(0, len(todo), size):
             pool.submit(todo[start : start + size])
         unsaved = 0

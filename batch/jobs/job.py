@@ -14,16 +14,17 @@ import dataclasses
 from dataclasses import dataclass
 
 from ..errors import BatchError
+from . import options
 from .lobes import LOBES, parse_lobes
+from .options import DEVICES, MAX_RESOLUTION, MAX_SPP, add_options
 from .seeds import MAX_PASSES, format_seeds, parse_seeds
 
-#: Cycles' largest render side (it clamps larger values) and largest samples per pixel (2**24).
-MAX_RESOLUTION = 65536
-MAX_SPP = 2**24
-
-#: The devices a job may ask for: the CPU, the first GPU backend that has a device, or one backend.
-GPU_BACKENDS = ("OPTIX", "CUDA", "HIP", "METAL", "ONEAPI")
-DEVICES = ("CPU", "GPU", *GPU_BACKENDS)
+#: The built-in scenes (`batch.blender.scenes.SCENES` builds them; a test holds the two together), named here so
+#: that a job or a suite naming another one is refused before anything starts.
+BUILTIN_SCENES = (
+    "corner", "corner_glass", "corner_mesh_light", "glossy", "glossy_rough", "glossy_sharp", "many_lights",
+    "environment", "volume", "volume_noise", "sss", "depth_of_field", "motion_blur", "hair", "textured",
+)  # fmt: skip
 
 #: How a job that asked for a GPU this machine lacks fails (a suite skips such a case with this reason).
 NO_GPU_MESSAGE = "Cycles found no GPU"
@@ -78,6 +79,8 @@ class RenderJob:
             raise BatchError(f"a run takes at most {MAX_PASSES} seeds, got {len(self.seeds)}")
         if self.blend is not None and self.scene is not None:
             raise BatchError(f"give a .blend file or a built-in scene, not both ({self.blend}, {self.scene!r})")
+        if self.scene is not None and self.scene not in BUILTIN_SCENES:
+            raise BatchError(f"unknown built-in scene {self.scene!r}; choose from {', '.join(BUILTIN_SCENES)}")
         _check_range("--spp", self.spp, 1, MAX_SPP)
         _check_range("--tile", self.tile, 1, MAX_RESOLUTION)
         _check_range("--checkpoint-every", self.checkpoint_every, 1, MAX_PASSES)
@@ -150,20 +153,9 @@ class RenderJob:
 
 
 def _check_range(option: str, value, low: int, high: int) -> None:
-    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+    if isinstance(value, str):  # a job made in code: an int, or refused
         raise BatchError(f"{option} must be an integer in {low}..{high}, got {value!r}")
-
-
-def parse_tolerance(text: str) -> float:
-    """A percentage such as ``0.5%`` as a fraction (0.005); BatchError unless it is one in (0 %, 1000 %)."""
-    number = text.strip().removesuffix("%")
-    try:
-        value = float(number) / 100.0
-    except ValueError:
-        value = float("nan")
-    if not text.strip().endswith("%") or not 0.0 < value < 10.0:
-        raise BatchError(f"must be a percentage such as 0.5%, got {text!r}")
-    return value
+    options.integer(option, value, low, high)
 
 
 def positive_int(text: str) -> int:
@@ -205,47 +197,25 @@ def seeds_arg(text: str) -> list[int]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Declare the options of a render job (the ``render`` command's, and where else a job is described)."""
+    """Declare the options of a render job (the ``render`` command's; `batch.jobs.options` declares the ones
+    other commands and the suite files share)."""
     parser.add_argument("blend", nargs="?", metavar="SCENE.blend", help="scene file (default: the file Blender opened)")
     parser.add_argument("--scene", help="a built-in scene instead of a file (see --help of `demo` for the list)")
-    parser.add_argument("--blend-scene", metavar="NAME", help="which scene of SCENE.blend (default: its active scene)")
     parser.add_argument("--seeds", type=seeds_arg, required=True, help="A:B (half-open range) or S1,S2,...")
+    add_options(parser, ("blend_scene",))
     parser.add_argument(
-        "--spp", type=positive_int, required=True, help=f"samples per pixel per pass (at most {MAX_SPP})"
+        "--spp",
+        type=options.argparse_type(options.OPTIONS["spp"]),
+        required=True,
+        help=f"samples per pixel per pass (at most {MAX_SPP})",
     )
-    parser.add_argument("--tile", type=positive_int, default=32, help="tile edge in pixels (default 32, as the paper)")
-    parser.add_argument(
-        "--resolution",
-        type=positive_int,
-        nargs=2,
-        metavar=("W", "H"),
-        help=f"override the resolution (at most {MAX_RESOLUTION})",
-    )
-    parser.add_argument("--device", default="CPU", choices=DEVICES, help="Cycles device (default CPU)")
-    parser.add_argument(
-        "--sampling-pattern",
-        metavar="PATTERN",
-        help="Cycles sampling pattern, set explicitly and recorded (default: TABULATED_SOBOL, or the Sobol pattern "
-        "an older Blender has); one of the values the running Blender offers",
-    )
-    parser.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="RNA.PATH=VALUE",
-        help='property override, repeatable: cycles.sample_clamp_indirect=0, lights["Light"].energy=100, '
-        'materials["Walls"].node_tree.nodes["Diffuse BSDF"].inputs["Color"].default_value=0.21,0.21,0.21,1',
+    add_options(
+        parser,
+        ("tile", "resolution", "device", "sampling_pattern", "overrides", "lobes", "blender"),
+        defaults={"tile": 32, "device": "CPU", "lobes": ()},
+        helps={"tile": "tile edge in pixels", "resolution": f"override the resolution (at most {MAX_RESOLUTION})"},
     )
     parser.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")
-    parser.add_argument(
-        "--lobes",
-        type=lobes_arg,
-        default=(),
-        metavar="LIST",
-        help=f"also accumulate light components and light groups as layers of the statistics file: 'all' or some "
-        f"of {','.join(LOBES)} (compare and check then test each layer)",
-    )
     parser.add_argument(
         "--on-nan",
         default="stop",
@@ -258,11 +228,5 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=8,
         metavar="N",
         help="save the statistics file every N passes (default 8)",
-    )
-    parser.add_argument(
-        "--blender",
-        metavar="PATH",
-        help="render with this Blender executable (3.4 or later) instead of the bpy module; its version and build "
-        "are recorded",
     )
     parser.add_argument("--out", required=True, metavar="STATS", help="statistics file to write (.npz)")

@@ -2,7 +2,7 @@
 (``blender -b ... --python batch/blender_entry.py -- render ...``), built from the job contract, with its
 progress events read back as they come.
 
-Used by ``render --blender``, the Blender add-on's background runs and the workers. Nothing here imports bpy.
+The driver of a render side (`batch.jobs.side`) starts its processes here. Nothing here imports bpy.
 """
 
 from __future__ import annotations
@@ -188,39 +188,3 @@ class JobProcess:
             if tail:
                 return tail[-1]
         return ""
-
-
-def run_job(job: RenderJob, progress, python_paths: tuple[str, ...] = ()) -> None:
-    """Run `job` in another process (its Blender binary, or this Python), relaying its progress events to
-    `progress`, and turn its exit into this process's outcome: errors raise BatchError, an interrupted job
-    raises KeyboardInterrupt (its checkpoint is kept), anything else RuntimeError."""
-    process = JobProcess(job_command(job, python_paths=python_paths))
-    try:
-        while True:
-            try:
-                code = process.popen.wait(0.1)
-            except subprocess.TimeoutExpired:
-                code = None
-            _relay(process, progress)
-            if code is not None:
-                break
-    except KeyboardInterrupt:
-        process.stop()
-        raise
-    process.wait()
-    _relay(process, progress)
-    if code == 0:
-        return
-    reason = process.error_message() or "no error message"
-    if code == Exit.USAGE:
-        raise BatchError(reason)
-    if protocol.interrupted(code):
-        raise KeyboardInterrupt
-    who = job.blender or "the render process"
-    raise RuntimeError(f"{who} failed (exit code {code}): {reason}")
-
-
-def _relay(process: JobProcess, progress) -> None:
-    for event in process.drain():
-        if not isinstance(event, protocol.Failed):  # the error is reported once, by whoever handles the exit
-            progress.emit(event)
