@@ -18,6 +18,9 @@ from . import checks, plan, trials
 from .plotting import plt, save, write_csv
 from .pools import load_or_render, say
 from .trials import ALPHA
+from .words import n as _n
+from .words import pct as _pct
+from .words import s as _s
 
 
 def pairs(b: plan.Budget) -> list[dict]:
@@ -116,3 +119,83 @@ def _plot(path: Path, rows: list[dict], all_runs: dict) -> str:
     fig.suptitle(f"Chart 6: A/A runs of check (α = {ALPHA})")
     fig.tight_layout()
     return save(fig, path)
+
+
+# -- its section of docs/benchmarks/README.md --------------------------------------------------------------------------
+
+
+def section(f: dict) -> list[str]:
+    """Chart 6's section of docs/benchmarks/README.md from the figures `f`."""
+    return [CHART6, *chart6_lines(f["chart6"]), "", *chart6_findings(f["chart6"])]
+
+
+CHART6 = """
+## Chart 6: A/A runs of `check`
+
+![chart 6](chart6_aa.png)
+
+`check` at its defaults (as in chart 5) on unbiased pairs: a configuration against itself with disjoint seeds
+(`check --unpaired`), and one paired pair (Sobol against blue noise on the same seeds: two sampling patterns of
+one scene, unbiased). The budget is the pool. The design promises `biased` in at most α of the runs, however many
+looks they take.
+"""
+
+
+def chart6_lines(c6: dict) -> list[str]:
+    lines = [
+        "| unbiased pair | runs (budget a side) | `equivalent` | passes a side to `equivalent`: median, p90 "
+        "| render seconds: median, p90 | `biased` [95 % Wilson] | `inconclusive` at the budget "
+        "| those rule out (median) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for r in c6["rows"]:
+        rule = "—"
+        if r["inconclusive_median_ruled_out"] is not None:
+            rule = f"±{_pct(r['inconclusive_median_ruled_out'], 2)} at {r['inconclusive_tile']}²"
+        lines.append(
+            f"| {r['label']} | {r['runs']} ({r['max_passes']}) | {_pct(r['equivalent_share'])} | "
+            f"{_n(r['equivalent_median_passes'])}, {_n(r['equivalent_p90_passes'])} | "
+            f"{_s(r['equivalent_median_s'])}, {_s(r['equivalent_p90_s'])} | {r['biased']} = "
+            f"{_pct(r['biased_rate'])} [{_pct(r['biased_lo'])}, {_pct(r['biased_hi'])}] | "
+            f"{_pct(r['inconclusive_share'])} | {rule} |"
+        )
+    return lines
+
+
+def chart6_findings(c6: dict) -> list[str]:
+    rows = {r["pair"]: r for r in c6["rows"]}
+    out = []
+    c = rows.get("corner")
+    if c:
+        out.append(
+            f"- **Corner A/A** ({c['runs']} runs): `equivalent` in {_pct(c['equivalent_share'])}, after a median of "
+            f"{_n(c['equivalent_median_passes'])} passes a side ({_s(c['equivalent_median_s'])} of rendering, 90 % "
+            f"by {_n(c['equivalent_p90_passes'])}); `biased` {c['biased']} times ({_pct(c['biased_rate'])}, 95 % "
+            f"Wilson [{_pct(c['biased_lo'])}, {_pct(c['biased_hi'])}], α = {_pct(ALPHA, 0)}); `inconclusive` "
+            f"{_pct(c['inconclusive_share'])}. Nobody chose N: the budget is only a ceiling."
+            + (
+                f" The tightest bound at the stop (median ±{_pct(c['equivalent_median_bound'], 2)}) was at the "
+                f"{c['equivalent_tile']}² scale in {_pct(c['equivalent_tile_share'], 0)} of those runs "
+                "(`equivalent` holds once some scale bounds every one of its tiles within the tolerance)."
+                if c.get("equivalent_tile")
+                else ""
+            )
+        )
+    above = [r for r in c6["rows"] if r["biased_lo"] > ALPHA]
+    out.append(
+        "- **Calibration of `biased`**: "
+        + ("every pair's `biased` rate is compatible with α or below it." if not above else
+           "above α: " + ", ".join(f"{r['label']} {_pct(r['biased_rate'])}" for r in above) + ".")
+    )  # fmt: skip
+    stuck = [r for r in c6["rows"] if r["inconclusive_share"] >= 0.05]
+    for r in stuck:
+        out.append(
+            f"- **{r['label']}**: {_pct(r['inconclusive_share'], 0)} of the runs spend the budget of "
+            f"{r['max_passes']} passes a side and end `inconclusive`; they rule out a bias beyond "
+            f"±{_pct(r['inconclusive_median_ruled_out'] or float('nan'), 2)} (median) at the {r['inconclusive_tile']}² "
+            "scale, but not ±1 %: at 1 spp its noise needs more passes for a 1 % bound than the pool holds"
+            + (f" (tiles tested at no scale at the end: median {_n(r['inconclusive_uncovered_median'])})"
+               if r["inconclusive_uncovered_median"] else ", with every tile testable at some scale")
+            + "."
+        )  # fmt: skip
+    return out

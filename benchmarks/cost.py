@@ -253,3 +253,48 @@ def _plot(path: Path, m: dict) -> str:
     fig.suptitle("Chart 4: how the cost grows (2 cores, Cycles on CPU)")
     fig.tight_layout()
     return save(fig, path)
+
+
+# -- its section of docs/benchmarks/README.md --------------------------------------------------------------------------
+
+
+def section(f: dict) -> list[str]:
+    """Chart 4's section of docs/benchmarks/README.md from the figures `f`."""
+    return [CHART4, *chart4_lines(f["chart4"])]
+
+
+CHART4 = """
+## Chart 4: how the cost grows
+
+![chart 4](chart4_cost.png)
+"""
+
+
+def chart4_lines(c4: dict) -> list[str]:
+    o, h = c4["overhead"], c4["persistent"]
+    passes = ", ".join(f"{r['resolution']}²: {r['total_s']:.3g} s" for r in c4["passes"])
+    verdicts = "; ".join(
+        f"N = {r['passes']}: {r['compare_s'] * 1e3:.0f} ms + {r['report_s']:.2f} s" for r in c4["verdicts"]
+    )
+    core = ", ".join(
+        f"{r['tiles']} tiles: {r['compare_s'] * 1e3:.0f} ms, {r['peak_bytes'] / 2**20:.1f} MiB" for r in c4["core"]
+    )
+    return [
+        f"- Seconds per pass (corner, 1 spp; render + EXR write/read + accumulation): {passes}.",
+        f"- Seconds per verdict (compare + report) at 128² px and 32² tiles: {verdicts}. The report (PNG maps and "
+        "histograms written by matplotlib) is almost all of it; the statistics take milliseconds.",
+        f"- welch_core's `compare` alone (N = 32 a side): {core}.",
+        f"- Pipeline overhead at {o['resolution']}², 1 spp, corner: the bare `bpy.ops.render.render()` takes "
+        f"{o['bare_s'] * 1e3:.1f} ms, a whole pass (re-seed, render, EXR write and read, accumulate) "
+        f"{o['pipeline_s'] * 1e3:.1f} ms: "
+        f"**{100 * o['overhead']:+.1f} %** (medians of {o['passes']} interleaved passes; the target was below 10 %)"
+        + (
+            f", of which the EXR write and read are {o['io_s'] * 1e3:.1f} ms and the accumulation "
+            f"{o['accumulate_s'] * 1e3:.1f} ms."
+            if "io_s" in o
+            else "."
+        ),
+        f"- Persistent data on a heavy scene (corner + {h['triangles']:,} triangles, {h['resolution']}², 1 spp): "
+        f"{h['median_off_s'] * 1e3:.0f} ms per pass off, {h['median_on_s'] * 1e3:.0f} ms on: **×{h['speedup']:.1f}** "
+        f"(first pass {h['first_off_s']:.2f} s off, {h['first_on_s']:.2f} s on).",
+    ]

@@ -25,7 +25,13 @@ import welch_core as wc
 from . import checks, detection, plan, scales
 from .plotting import plt, save, write_csv
 from .pools import load_or_render, say
-from .trials import ALPHA, FIXED_PAIRED, FIXED_WELCH
+from .trials import ALPHA, FIXED_PAIRED, FIXED_WELCH, LABELS
+from .words import MODE_NAMES
+from .words import n as _n
+from .words import pct as _pct
+from .words import s as _s
+from .words import tg as _tg
+from .words import x as _x
 
 #: The goal of issue 11: `check` reaches `biased` in at most this many times the best fixed design's seconds.
 GOAL = 1.25
@@ -222,3 +228,153 @@ def _plot(path: Path, cases, rows) -> str:
     fig.suptitle(f"Chart 5: render seconds to a decision (α = 0.01; {rows[0]['runs']} runs per design and case)")
     fig.tight_layout()
     return save(fig, path)
+
+
+# -- its section of docs/benchmarks/README.md --------------------------------------------------------------------------
+
+
+def section(f: dict) -> list[str]:
+    """Chart 5's section of docs/benchmarks/README.md from the figures `f`."""
+    c5, b = f["chart5"], f["budget"]
+    parts = [CHART5.format(runs=c5["runs"], passes=b["passes"], half=b["passes"] // 2)]
+    parts += chart5_lines(c5) + ["", "Per case and test, the goal (median time to `biased` at most 1.25× the best "
+                                 "fixed design's):", ""] + chart5_findings(c5)  # fmt: skip
+    return parts + ["", BOUNDARIES, ""] + chart5_boundary_lines(c5)
+
+
+CHART5 = """
+## Chart 5: render seconds to a decision (`check` against the best fixed design)
+
+![chart 5](chart5_decision.png)
+
+`python -m batch check` renders both sides in chunks and stops once the data decide (`welch_core.looks`: a
+group-sequential design with Pocock-type alpha spending over the looks and Bonferroni over tile-channels and
+scales). Here it is simulated on chart 1's pools: {runs} runs per case and test, each drawing the passes in a random
+order of the pool's seeds and calling `welch_core.sequential_look` at the looks of `look_schedule(budget)` (2, 3,
+4, ... passes a side, then 15 % more each time) until a verdict, exactly as `check` does after each chunk, at its
+defaults: α = 0.01, tolerance 1 %, finest tile 16 px and every scale above it, the pool as the budget ({passes}
+passes a side paired, the same seeds on both sides, as `check` does on one build; {half} unpaired, as with
+`--unpaired` or two builds). Render seconds count as on chart 1 (median seconds of a pass of each side times the
+passes a side). The fixed design to beat is chosen in hindsight from chart 1: per case the fewest seconds to 80 %
+detection over the tile sizes 16², 32², 64², 128² and the pass counts, Welch and paired separately. A fixed
+design's 80 % point is the time by which 80 % of its trials say `biased`; the like-for-like figure of `check` is
+its 80th percentile (p80); the median and p90 are shown as asked. Also simulated: `check` with the equivalence
+verdict off (`SequentialPlan(tolerance=None)`, so a run can only stop at `biased`; the command line has no switch
+for it) and, unpaired, the same with Welch-Satterthwaite's ν instead of the conservative n − 1 of the sequential
+design (a what-if: only n − 1 is calibrated). Passes a side in brackets; the local bias is chart 7's.
+"""
+
+
+BOUNDARIES = """Why the first looks rarely decide: the critical values a single hypothesis must pass at the first looks
+of `check` (Pocock spending of its Bonferroni share over 4 scales; t with n − 1 degrees of freedom) against a fixed
+test of one tile size at the same n (Holm's first step α / tile-channels, halved for the KS test; ν = 2n − 2 for
+Welch with equal variances, n − 1 paired):"""
+
+
+def chart5_lines(c5: dict) -> list[str]:
+    rows = c5["rows"]
+    lines = [
+        "| case | test | best fixed design (hindsight): seconds, passes a side | `check`: median | p80 | p90 "
+        "| median / best | p80 / best | p90 / best | runs `biased` / `equivalent` / `inconclusive` "
+        "| equivalence off: median / best, p90 / best |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        if r["mode"] not in MODE_NAMES:
+            continue
+        noeq = next(x for x in rows if x["case"] == r["case"] and x["mode"] == f"{r['mode']}_noeq")
+        best = "not reached"
+        if r["best_fixed_s"] is not None:
+            best = f"{_s(r['best_fixed_s'])}, {r['best_fixed_passes']:.0f} ({LABELS[r['best_fixed_method']]})"
+        lines.append(
+            f"| {r['label']} | {r['mode']} | {best} | {_s(r['decision_median_s'])} "
+            f"({_n(r['decision_median_passes'])}) | {_s(r['decision_p80_s'])} | {_s(r['decision_p90_s'])} "
+            f"({_n(r['decision_p90_passes'])}) | {_x(r['decision_median_ratio'])} | {_x(r['decision_p80_ratio'])} | "
+            f"{_x(r['decision_p90_ratio'])} | {r['biased']} / {r['equivalent']} / {r['inconclusive']} | "
+            f"{_x(noeq['biased_median_ratio'])}, {_x(noeq['biased_p90_ratio'])} |"
+        )
+    return lines
+
+
+def chart5_boundary_lines(c5: dict) -> list[str]:
+    first = c5["boundaries"][0]
+    fine, coarse = f"{first['finest']}²", f"{first['coarsest']}²"
+    lines = [
+        f"| test (budget) | look | passes a side | information | nominal level at {fine}: check / fixed "
+        f"| critical t at {fine}: check / fixed | level at {coarse}: check / fixed | critical t at {coarse}: check / "
+        "fixed |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for r in c5["boundaries"]:
+        lines.append(
+            f"| {r['test']} ({r['max_passes']}) | {r['look']} | {r['passes']} | {_pct(r['fraction'])} | "
+            f"{r['level_seq_finest']:.2g} / {r['level_fixed_finest']:.2g} | {_tg(r['t_seq_finest'])} / "
+            f"{_tg(r['t_fixed_finest'])} | {r['level_seq_coarsest']:.2g} / {r['level_fixed_coarsest']:.2g} | "
+            f"{_tg(r['t_seq_coarsest'])} / {_tg(r['t_fixed_coarsest'])} |"
+        )
+    return lines
+
+
+def chart5_findings(c5: dict) -> list[str]:
+    rows = c5["rows"]
+    changes = c5.get("changes", {})
+    out = []
+    for g in c5["goal"]:
+        r = next(x for x in rows if x["case"] == g["case"] and x["mode"] == g["mode"])
+        noeq = next(x for x in rows if x["case"] == g["case"] and x["mode"] == f"{g['mode']}_noeq")
+        ws = next((x for x in rows if x["case"] == g["case"] and x["mode"] == f"{g['mode']}_noeq_ws"), None)
+        head = f"- **{g['label']}, {g['mode']}**: "
+        if g["best_fixed_s"] is None:
+            out.append(head + "no fixed design reaches 80 % within the pool; `check` ends `biased` in "
+                       f"{_pct(g['biased_share'], 0)} of the runs (median {_s(r['biased_median_s'])}).")  # fmt: skip
+            continue
+        met = g["median_ratio"] is not None and g["median_ratio"] <= 1.25
+        met90 = g["p90_ratio"] is not None and g["p90_ratio"] <= 1.25
+        verdict = "**met**" if met else "**not met**"
+        if g["median_s"] is None and g["equivalent_share"] >= 0.5:
+            verdict = "**not met at the defaults: most runs end `equivalent`**"
+        text = (
+            head
+            + verdict
+            + (
+                f" (median time to `biased` {_x(g['median_ratio'])}, p80 {_x(g['p80_ratio'])}, "
+                f"p90 {_x(g['p90_ratio'])} the best fixed design's {_s(g['best_fixed_s'])}"
+                + ("; at p90 too" if met and met90 else "; not at p90" if met else "")
+                + ")."
+            )
+        )
+        why = []
+        if g["equivalent_share"] >= 0.05:
+            change = changes.get(g["case"])
+            size = f" (mean change {_pct(change, 2)})" if change is not None else ""
+            why.append(f"{_pct(g['equivalent_share'], 0)} of the runs end `equivalent`: the bias{size} is inside the "
+                       "1 % tolerance at some scale, the answer the defaults ask for; with the equivalence verdict off "
+                       f"the median is {_x(noeq['biased_median_ratio'])}")  # fmt: skip
+        passes = g["median_s"] / r["seconds_per_pass_both"] if g["median_s"] else None
+        fixed_n = r["best_fixed_passes"]
+        bound = next(
+            (x for x in c5["boundaries"] if x["test"] == g["mode"] and fixed_n and x["passes"] >= fixed_n), None
+        )
+        if bound is not None:
+            why.append(
+                f"the fixed design needs only {fixed_n:.0f} passes a side; there (look {bound['look']}, "
+                f"{bound['passes']} passes, {_pct(bound['fraction'])} of the {bound['max_passes']}-pass budget) "
+                f"`check`'s whole-image hypothesis must reach p ≤ {bound['level_seq_coarsest']:.1g} with t on "
+                f"n − 1 = {bound['passes'] - 1} degrees of freedom (|t| ≥ {_tg(bound['t_seq_coarsest'])}), the fixed "
+                f"test p ≤ {bound['level_fixed_coarsest']:.1g} (|t| ≥ {_tg(bound['t_fixed_coarsest'])}): Pocock "
+                "spending gives the first looks of a large budget a few per cent of α, split over 4 scales, and "
+                "few degrees of freedom make a small level expensive in t"
+            )
+        if ws is not None and ws["biased_median_ratio"] is not None and noeq["biased_median_ratio"] is not None:
+            if ws["biased_median_ratio"] < 0.9 * noeq["biased_median_ratio"]:
+                why.append(
+                    "Welch-Satterthwaite's ν instead of the conservative n − 1 would bring the median "
+                    f"(equivalence off) from {_x(noeq['biased_median_ratio'])} to "
+                    f"{_x(ws['biased_median_ratio'])} (a what-if: the design is calibrated with n − 1)"
+                )
+        if passes is not None and passes >= 15:
+            why.append("the looks come 15 % apart, so a run stops up to 15 % after the evidence first suffices")
+        if why and not (met and met90):
+            text += " Why: " + "; ".join(why) + "."
+        out.append(text)
+    return out

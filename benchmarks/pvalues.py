@@ -22,6 +22,7 @@ from .cache import digest, memo_json
 from .core_speed import best_time, mp_student
 from .plotting import plt, save, write_csv
 from .pools import say
+from .words import gauss_fp as _gauss_fp
 
 METHODS = {
     "exact": ("exact Student t", lambda t, nu: wc.two_sided_pvalue(t, nu, "exact")),
@@ -161,3 +162,68 @@ def _plot(path: Path, rows: list[dict], ref: dict, per_nu: dict) -> str:
         f"Chart 2: p-value methods (reference: mpmath, 40 digits, {len(ref['nu'])} ν × {len(ref['t'])} |t| grid)"
     )
     return save(fig, path)
+
+
+# -- its section of docs/benchmarks/README.md --------------------------------------------------------------------------
+
+
+def section(f: dict) -> list[str]:
+    """Chart 2's section of docs/benchmarks/README.md from the figures `f`."""
+    parts = [CHART2.format(nu=f["chart2"]["grid"]["nu"], t=f["chart2"]["grid"]["t"])]
+    return parts + chart2_lines(f["chart2"]) + [""] + chart2_findings(f["chart2"], f.get("chart1"))
+
+
+CHART2 = """
+## Chart 2: p-value methods, time against error
+
+![chart 2](chart2_pvalue_methods.png)
+
+Reference: mpmath at 40 digits on {nu} values of ν (log-spaced in [1, 10⁴]) × {t} values of |t| in [0, 40].
+Timing: one million tile-channel tests with |t| uniform in [0, 40] and ν log-uniform, best of 5.
+"""
+
+
+def chart2_lines(c2: dict) -> list[str]:
+    lines = ["| method | ms per million tests | max rel. error of p | same, p ≥ 1e-7 "
+             "| max rel. error of log p, p < 0.01 |",
+             "|---|---|---|---|---|"]  # fmt: skip
+    for r in c2["rows"]:
+        lines.append(
+            f"| {r['label']} | {r['ms_per_million']:.0f} | {r['max_rel_err_p']:.2g} "
+            f"| {r['max_rel_err_p_decisive']:.2g} | {r['max_rel_err_log_p_small']:.2g} |"
+        )
+    return lines
+
+
+def chart2_findings(c2: dict, c1: dict | None = None) -> list[str]:
+    rows = {r["method"]: r for r in c2["rows"]}
+    ex, g20, gall, aall = rows["exact"], rows["gauss_nu20"], rows["gauss_all"], rows["as_erf_all"]
+    at = {(r["nu"], r["p"]): r for r in c2["at"]}
+    a5, a20 = at.get((5, 0.01)), at.get((20, 1e-05))
+    out = [
+        f"- **Exact Student t** (the default): largest relative error of p {ex['max_rel_err_p']:.1g} over the whole "
+        f"grid, of log p {ex['max_rel_err_log_p_small']:.1g}, at {ex['ms_per_million']:.0f} ms per million "
+        "tile-channel tests: a 4K frame at 32² tiles has 24 120 tile-channels, so the exact p costs a few "
+        "milliseconds a verdict. There is nothing to gain from an approximation.",
+        f"- **Gaussian where ν ≥ 20** ('gauss'): {g20['ms_per_million']:.0f} ms per million, "
+        + (
+            "no faster than the exact p (welch_core evaluates the exact p everywhere, then replaces it where ν ≥ 20). "
+            if g20["ms_per_million"] > 0.8 * ex["ms_per_million"]
+            else f"{ex['ms_per_million'] / g20['ms_per_million']:.1f}× faster than the exact p. "
+        )
+        + f"Its largest relative error among p ≥ 1e-7 on the grid is {g20['max_rel_err_p_decisive']:.2g}"
+        + (f"; at ν = 20, where the exact p is 1e-5, it gives {1e-5 * (1 + a20['gauss_nu20']):.2g}" if a20 else "")
+        + ": the tails of t with 20 degrees of freedom are far heavier than the Gaussian's, so at the small p that "
+        "Holm's correction compares against the approximation is anti-conservative." + (_gauss_fp(c1) if c1 else ""),
+        f"- **Gaussian / A&S everywhere**: {gall['ms_per_million']:.0f} and {aall['ms_per_million']:.0f} ms per "
+        f"million ({ex['ms_per_million'] / gall['ms_per_million']:.0f}× and "
+        f"{ex['ms_per_million'] / aall['ms_per_million']:.0f}× faster than exact), but wrong where ν is small"
+        + (
+            f" (at ν = 5, where the exact p is 0.01, the Gaussian gives {0.01 * (1 + a5['gauss_all']):.2g})"
+            if a5
+            else ""
+        )
+        + " and underflowing to 0 in the far tail (infinite error of log p). Chart 3 shows what that does to the "
+        "false-positive rate.",
+    ]
+    return out

@@ -25,6 +25,13 @@ from .cache import digest, memo_json, welch_digest
 from .plotting import COLORS, plt, save, write_csv
 from .pools import load_or_render, say
 from .trials import ALPHA, BASE_TILE, FIXED_WELCH, LABELS
+from .words import WELCH
+from .words import fine_share as _fine_share
+from .words import p as _p
+from .words import pct as _pct
+from .words import s as _s
+from .words import tile as _tile
+from .words import x as _x
 
 SCALE_METHODS = (*FIXED_WELCH, "welch_multi")
 SCALES_VERSION = 1
@@ -250,3 +257,98 @@ def _plot(path: Path, cases, per_case, local_rows, glass_rows, shown) -> str:
         ax.axis("off")
     fig.suptitle("Chart 7: multi-scale tiles against fixed tile sizes (α = 0.01)")
     return save(fig, path)
+
+
+# -- its section of docs/benchmarks/README.md --------------------------------------------------------------------------
+
+
+def section(f: dict) -> list[str]:
+    """Chart 7's section of docs/benchmarks/README.md from the figures `f`."""
+    b = f["budget"]
+    parts = [CHART7.format(trials=b.get("scale_trials"), local=f["chart7"].get("local_label", ""))]
+    return parts + chart7_lines(f["chart7"]) + [""] + chart7_findings(f["chart7"])
+
+
+CHART7 = """
+## Chart 7: every scale at once against each fixed tile size
+
+![chart 7](chart7_scales.png)
+
+Seconds to 80 % detection of Welch's test at one tile size (`compare(..., tile=N)`) and at every scale from 16²
+(compare's default), from chart 1's trials and, for a local bias, from the same trials on a new pool: {local}.
+Then the glass sphere's A/A (`corner_glass` against itself, disjoint seeds; the caustic failure case of the paper,
+§5.1), {trials} trials per pass count, each compared at every tile size alone and at every scale.
+"""
+
+
+def chart7_lines(c7: dict) -> list[str]:
+    lines = [
+        "| case | Welch 16² | 32² | 64² | 128² | every scale | best tile | every scale / best tile |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for r in c7["cases"]:
+        cells = " | ".join("—" if r[f"{m}_s"] is None else _s(r[f"{m}_s"]) for m in (*WELCH, "welch_multi"))
+        best = _tile(r["best_fixed_method"]) if r["best_fixed_method"] else "—"
+        lines.append(f"| {r['label']} | {cells} | {best} | {_x(r['multi_over_best'])} |")
+    glass = c7["glass"]
+    tiles = list(dict.fromkeys(r["tile"] for r in glass))
+    lines += ["", "Glass sphere A/A, share of trials ending `inconclusive` (and `biased`):", "",
+              "| passes a side | " + " | ".join("every scale" if t == "multi" else f"{t}² alone" for t in tiles)
+              + " | every scale: trials with tiles tested at no scale | whole image untrusted |",
+              "|---|" + "---|" * (len(tiles) + 2)]  # fmt: skip
+    for n in dict.fromkeys(r["n"] for r in glass):
+        cells = []
+        for t in tiles:
+            r = next(x for x in glass if x["n"] == n and x["tile"] == t)
+            cells.append(f"{_pct(r['inconclusive_share'], 0)} ({_pct(r['biased_share'], 1)})")
+        m = next(x for x in glass if x["n"] == n and x["tile"] == "multi")
+        lines.append(f"| {n} | " + " | ".join(cells) + f" | {m['uncovered_trials']} of {m['trials']} | "
+                     f"{m['coarsest_untrusted']} of {m['trials']} |")  # fmt: skip
+    return lines
+
+
+def chart7_findings(c7: dict) -> list[str]:
+    out = []
+    ratios = [(r["multi_over_best"], r) for r in c7["cases"] if r["multi_over_best"] is not None]
+    if ratios:
+        worst = max(ratios, key=lambda x: x[0])
+        out.append(
+            "- **Every scale against the best tile size in hindsight**: "
+            + ", ".join(f"{r['case']} {_x(x)}" for x, r in ratios)
+            + f" (worst: {worst[1]['label']}). The Bonferroni factor of 4 scales costs little, and nobody has to "
+            "know the best tile size in advance: it differs from case to case ("
+            + ", ".join(f"{r['case']} {_tile(r['best_fixed_method'])}" for _x_, r in ratios)
+            + ")."
+        )  # fmt: skip
+    t = c7.get("local_tiles")
+    if t:
+        out.append(
+            f"- **Local bias** ({c7['local_label']}): the largest change of a tile mean is "
+            + ", ".join(f"{_pct(v['largest'], 1)} at {k}²" for k, v in t.items())
+            + f"; {t['16']['tiles_over_1pct']} of {t['16']['tiles']} tiles of 16² change by more than 1 %."
+        )
+    glass = c7["glass"]
+    if glass:
+        multi = [r for r in glass if r["tile"] == "multi"]
+        fine = [r for r in glass if r["tile"] in ("16", "32")]
+        out.append(
+            "- **Glass sphere A/A**: at 16² or 32² alone "
+            + _fine_share(fine)
+            + " of the trials end `inconclusive` (the caustic tiles' Welch samples are clearly not normal and they are "
+            "more than a quarter of the image); at every "
+            f"scale {_pct(min(r['inconclusive_share'] for r in multi), 0)}–"
+            f"{_pct(max(r['inconclusive_share'] for r in multi), 0)}"
+            + (". The remaining ones are trials where even the whole image's Welch samples are flagged (a caustic "
+               "firefly in a pass; column 'whole image untrusted'): no tile size is too small there, the image is."
+               if all(r["inconclusive"] <= r["coarsest_untrusted"] for r in multi) else
+               ", some of them with the whole image trusted (column 'whole image untrusted').")
+        )  # fmt: skip
+    ex = c7.get("example")
+    if ex:
+        out.append(
+            f"- **One such trial** (n = {ex['n']}, right of the chart): {ex['uncovered']} of {ex['tiles']} tiles of "
+            f"16² can be tested at no scale; the verdict is `{ex['verdict']}` (p {_p(ex['p_value'])}) for the rest. "
+            "The report says: " + " / ".join(f"“{n}”" for n in ex["notes"]) + ". Per scale, tiles used: "
+            + ", ".join(f"{s['tile']}²: {s['used']} of {s['tiles']}" for s in ex["scales"]) + "."
+        )  # fmt: skip
+    return out

@@ -30,7 +30,8 @@ def compare_and_show(context, reference_path: str, test_path: str, alpha: float)
 
 
 def verdict_message(summary: dict) -> str:
-    return f"{summary['verdict_title']} (alpha {summary['alpha']:g}, global p {fmt.p_value(summary['p_value'])})"
+    """The verdict's sentence, capitalised, as the status bar shows it."""
+    return fmt.one_line(summary["sentence"][:1].upper() + summary["sentence"][1:])
 
 
 def tag_redraw(context) -> None:

@@ -70,7 +70,8 @@ def summarize(comparison, reference, test, sources: dict[str, str]) -> dict:
     summary = _summary_module().summarize(comparison, reference, test, sources["reference"], sources["test"])
     bars, expected = histogram_bars(comparison.tile_pvalues[comparison.used])
     summary.update(
-        verdict_title=comparison.verdict.title,
+        verdict_title=comparison.verdict.title + (" (Bit-Identical)" if comparison.outcome.identical else ""),
+        design=_summary_module().design_line(summary),
         verdict_icon=VERDICT_ICONS[comparison.verdict],
         histogram=bars,
         histogram_expected=expected,

@@ -5,6 +5,8 @@ when the run ended. Layout calls that Blender 3.4 lacks (``panel``, ``progress``
 (a bar of block characters).
 """
 
+import textwrap
+
 import bpy
 
 from . import runner
@@ -109,13 +111,20 @@ def draw_run(layout, context, settings) -> None:
         box.label(text=current.last_error, icon="ERROR")
 
 
+#: Characters of the verdict's sentence on one line of a panel in the default layout.
+SENTENCE_WIDTH = 44
+
+
 def draw_verdict(layout, result) -> None:
+    """The verdict's title, its sentence (the one every presenter shows: batch.present.words) and the design."""
     box = layout.box()
     row = box.row()
     row.alert = result["verdict"] == "biased"
     row.label(text=result["verdict_title"], icon=result["verdict_icon"])
-    test = "paired t-test" if result["test"] == "paired" else "Welch's t-test"
-    box.label(text=f"Alpha {result['alpha']:g}, global p {fmt.p_value(result['p_value'])}, {test}")
+    for line in textwrap.wrap(result["sentence"], SENTENCE_WIDTH):
+        box.label(text=line)
+    for line in textwrap.wrap(result["design"], SENTENCE_WIDTH):
+        box.label(text=line)
     tiles = result["tiles"]
     box.label(text=f"Tiles: {tiles['valid']} of {tiles['total']} valid, {tiles['used']} used")
     box.label(text=f"Significant after correction: {tiles['significant']}")

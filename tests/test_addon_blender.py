@@ -443,7 +443,8 @@ def test_panel_with_a_result(scene, tmp_path, bias, verdict):
     layout = draw_panel()
     texts = layout.texts()
     assert verdict in texts
-    assert any(t.startswith("Alpha 0.01, global p ") for t in texts)
+    assert " ".join(texts).startswith(f"{verdict} {state.result['sentence']}")  # the sentence every presenter shows
+    assert any(t.startswith("alpha 0.01, global p ") for t in texts)
     assert "Tiles: 16 of 16 valid, 16 used" in texts
     bars = [kw["text"] for kind, kw in layout.calls if kind == "progress"]
     assert bars == [f"p {bar['label']}: {bar['count']}" for bar in state.result["histogram"]]

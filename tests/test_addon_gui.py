@@ -186,7 +186,7 @@ GUI_SCRIPT = textwrap.dedent(
         window = wm.windows[0]
         report["window"] = [window.width, window.height]
         with bpy.context.temp_override(window=window):
-            scenes = importlib.import_module(MODULE + ".batch.scenes")  # the add-on package holds the batch tool
+            scenes = importlib.import_module(MODULE + ".batch.blender.scenes")  # the add-on package holds batch
             scene = scenes.build_scene("corner")
             settings = scene.welch_bias
             settings.overrides.add().text = f"{scenes.WALL_COLOR_PATH}={TEST_WALLS}"

@@ -34,7 +34,7 @@ LIGHT_ENERGY = 60.0  # watts; the mean pixel of ``corner`` comes out near 0.17
 MESH_LIGHT_STRENGTH = 15.0  # the emitter of ``corner_mesh_light``; the mean pixel comes out near 0.11
 
 
-def _new_scene(name: str) -> bpy.types.Scene:
+def new_scene(name: str) -> bpy.types.Scene:
     """A new scene in the current file, made active, with unbiased Cycles settings."""
     scene = bpy.data.scenes.new(name)
     bpy.context.window.scene = scene
@@ -104,7 +104,7 @@ def _emission(name: str, strength: float) -> bpy.types.Material:
     return material
 
 
-def _link(scene: bpy.types.Scene, name: str, data, material=None) -> bpy.types.Object:
+def link_object(scene: bpy.types.Scene, name: str, data, material=None) -> bpy.types.Object:
     obj = bpy.data.objects.new(name, data)
     if material is not None:
         data.materials.append(material)
@@ -116,7 +116,7 @@ def _quad(scene, name: str, corners, material) -> bpy.types.Object:
     """A single-face mesh object through four corners (counter-clockwise seen from the lit side)."""
     mesh = bpy.data.meshes.new(name)
     mesh.from_pydata(corners, [], [(0, 1, 2, 3)])
-    return _link(scene, name, mesh, material)
+    return link_object(scene, name, mesh, material)
 
 
 def _sphere(scene, name: str, center, radius: float, material) -> bpy.types.Object:
@@ -128,7 +128,7 @@ def _sphere(scene, name: str, center, radius: float, material) -> bpy.types.Obje
     bm.to_mesh(mesh)
     bm.free()
     mesh.polygons.foreach_set("use_smooth", [True] * len(mesh.polygons))  # shade_smooth() is 3.6+
-    obj = _link(scene, name, mesh, material)
+    obj = link_object(scene, name, mesh, material)
     obj.location = center
     return obj
 
@@ -138,7 +138,7 @@ def _corner(name: str, floor: bpy.types.Material | None = None, mesh_light: bool
 
     The light is an area light, or with `mesh_light` an emissive quad of the same size and place.
     """
-    scene = _new_scene(name)
+    scene = new_scene(name)
     walls = _diffuse("Walls", WALL_GREY)
     b = BOX
     _quad(scene, "Floor", [(0, 0, 0), (b, 0, 0), (b, b, 0), (0, b, 0)], floor or walls)
@@ -156,11 +156,11 @@ def _corner(name: str, floor: bpy.types.Material | None = None, mesh_light: bool
         light.size = LIGHT_SIZE
         light.energy = LIGHT_ENERGY
         light.color = (1.0, 1.0, 1.0)
-        _link(scene, "Light", light).location = center  # an area light faces -Z
+        link_object(scene, "Light", light).location = center  # an area light faces -Z
 
     camera = bpy.data.cameras.new("Camera")
     camera.lens = 28.0
-    cam = _link(scene, "Camera", camera)
+    cam = link_object(scene, "Camera", camera)
     cam.location = (1.3 * b, -0.3 * b, 0.7 * b)
     # Aim at a point just in front of the corner so the three planes fill the frame.
     target = (0.35 * b, 0.75 * b, 0.3 * b)
@@ -304,19 +304,19 @@ def noise_density(tree, density_input, factor: float, scale: float) -> None:
     tree.links.new(multiply.outputs["Value"], density_input)
 
 
-def _box(scene, name: str, center, half: float, material) -> bpy.types.Object:
+def add_box(scene, name: str, center, half: float, material) -> bpy.types.Object:
     mesh = bpy.data.meshes.new(name)
     corners = [(x, y, z) for x in (-half, half) for y in (-half, half) for z in (-half, half)]
     faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
     mesh.from_pydata(corners, [], faces)
-    obj = _link(scene, name, mesh, material)
+    obj = link_object(scene, name, mesh, material)
     obj.location = center
     return obj
 
 
 def _volume_scene(name: str, noise: bool) -> bpy.types.Scene:
     scene = _corner(name)
-    _box(scene, "Fog", OBJECT_CENTER, OBJECT_RADIUS, _volume_material("Fog", 2.0, noise))
+    add_box(scene, "Fog", OBJECT_CENTER, OBJECT_RADIUS, _volume_material("Fog", 2.0, noise))
     scene.cycles.volume_bounces = CYCLES_MAX_BOUNCES
     return scene
 
@@ -330,7 +330,7 @@ def _many_lights_scene() -> bpy.types.Scene:
         light.energy = LIGHT_ENERGY / 16 * (1 + i % 3)  # unequal powers: the tree's importance has work to do
         light.shadow_soft_size = 0.02
         position = (0.2 + 0.2 * (i % 4), 0.4 + 0.3 * (i // 4), 0.85)
-        _link(scene, f"Small{i:02d}", light).location = tuple(p * BOX for p in position)
+        link_object(scene, f"Small{i:02d}", light).location = tuple(p * BOX for p in position)
     return scene
 
 
@@ -386,7 +386,7 @@ def _hair_scene() -> bpy.types.Scene:
     cx, cy = OBJECT_CENTER[:2]
     mesh.from_pydata([(cx - h, cy - h, 0.001), (cx + h, cy - h, 0.001), (cx + h, cy + h, 0.001),
                       (cx - h, cy + h, 0.001)], [], [(0, 1, 2, 3)])  # fmt: skip
-    patch = _link(scene, "Patch", mesh, _diffuse("Patch", 0.2))
+    patch = link_object(scene, "Patch", mesh, _diffuse("Patch", 0.2))
     hair = bpy.data.materials.new("Hair")
     tree = node_tree(hair)
     tree.nodes.clear()

@@ -1,11 +1,11 @@
 """Cycles' blue-noise pattern against Tabulated Sobol on a cube of fog: the measurement behind
 ``docs/findings/blue_noise_volume.md``::
 
-    python -m benchmarks.blue_noise_volume              # about 15 min on 2 cores; writes docs/findings/
-    python -m benchmarks.blue_noise_volume --quick      # tiny budget into a temporary folder: checks the pipeline
-    python -m benchmarks.blue_noise_volume --parts split ablation   # re-run some parts, their CSV rows replaced
-    python -m benchmarks.blue_noise_volume --plot-only  # redraw the chart from the CSV
-    python -m benchmarks.blue_noise_volume --save-blend docs/findings/fog.blend   # the scene for the CLI, and exit
+    python -m studies.blue_noise_volume              # about 15 min on 2 cores; writes docs/findings/
+    python -m studies.blue_noise_volume --quick      # tiny budget into a temporary folder: checks the pipeline
+    python -m studies.blue_noise_volume --parts split ablation   # re-run some parts, their CSV rows replaced
+    python -m studies.blue_noise_volume --plot-only  # redraw the chart from the CSV
+    python -m studies.blue_noise_volume --save-blend docs/findings/fog.blend   # the scene for the CLI, and exit
 
 The parts, all on the minimal scene of `fog_scene` (a cube of homogeneous Volume Scatter fog, anisotropy 0.6, lit
 by one point light, black world, Cycles' default of 0 volume bounces) unless said otherwise:
@@ -42,11 +42,11 @@ import numpy as np
 
 import welch_core as wc
 from batch.blender import render, scenes
+from benchmarks.cache import REPO
+from benchmarks.plotting import plt, save, write_csv
+from benchmarks.pools import quiet_stdout, say
+from welch_core.comparison import test_tiles
 from welch_core.effect import relative_interval
-
-from .cache import REPO
-from .plotting import plt, save, write_csv
-from .pools import quiet_stdout, say
 
 ALPHA = 0.01  # 99 % intervals, and the tile test's level
 
@@ -154,7 +154,7 @@ def fog_scene(
         128x128 pixels, Cycles with the project's unbiased settings (no clamping, no denoising, ...), the sampling
         pattern left for the render job to set.
     """
-    scene = scenes._new_scene(name)
+    scene = scenes.new_scene(name)
     scene.render.resolution_x = scene.render.resolution_y = RESOLUTION
     # _new_scene raises every bounce limit but this one: 0 is Cycles' default and the bias is largest there.
     scene.cycles.volume_bounces = volume_bounces
@@ -178,7 +178,7 @@ def fog_scene(
     tree.links.new(fog.outputs["Volume"], out.inputs["Volume"])
     if noise_density:
         scenes.noise_density(tree, fog.inputs["Density"], 2.0 * density, 2.0)  # the noise's Fac averages about 0.5
-    scenes._box(scene, "Fog", (0.0, 0.0, 0.0), CUBE_HALF, material)
+    scenes.add_box(scene, "Fog", (0.0, 0.0, 0.0), CUBE_HALF, material)
 
     if light is not None:
         lamp = bpy.data.lights.new("Light", light)
@@ -188,7 +188,7 @@ def fog_scene(
             lamp.energy = LIGHT_ENERGY
         if light == "AREA":
             lamp.size = 0.5
-        scenes._link(scene, "Light", lamp).location = LIGHT_LOCATION
+        scenes.link_object(scene, "Light", lamp).location = LIGHT_LOCATION
     if world_light:
         scenes.node_tree(scene.world).nodes["Background"].inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
 
@@ -198,7 +198,7 @@ def fog_scene(
         camera.dof.use_dof = True
         camera.dof.focus_distance = -CAMERA_LOCATION[1] - CUBE_HALF
         camera.dof.aperture_fstop = 0.5
-    cam = scenes._link(scene, "Camera", camera)
+    cam = scenes.link_object(scene, "Camera", camera)
     cam.location = CAMERA_LOCATION
     cam.rotation_euler = (np.pi / 2, 0.0, 0.0)  # from -Z (Blender's camera axis) to +Y
     scene.camera = cam
@@ -302,11 +302,16 @@ def fog_mask(scene, b: Budget) -> np.ndarray:
     return image.sum(axis=-1) > 0
 
 
+def _region(run: Run) -> wc.TileStats:
+    """The fog region's mean of every pass, as the Welch samples of a one-tile run."""
+    return wc.TileStats.from_sums(run.means.reshape(-1, 1, 1, 1), run.stats.seeds, 1, 1, 1)
+
+
 def difference(ref: Run, test: Run) -> dict:
     """(test - ref) / ref of the region mean with its 99 % interval and Welch's p; the tile test at every scale."""
-    result = wc.welch_ttest(ref.means, test.means)
-    ref_mean = float(ref.means.mean())
-    low, high = relative_interval(result, ref_mean, ALPHA)
+    tested = test_tiles(_region(ref), _region(test), "welch")
+    result, ref_mean = tested.result, float(ref.means.mean())
+    low, high = relative_interval(tested, ALPHA)
     tiles = wc.compare(ref.stats, test.stats, alpha=ALPHA)
     rel = tiles.effect.rel_diff
     return {
@@ -603,7 +608,7 @@ def read_rows(path: Path) -> list[dict]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
-        prog="python -m benchmarks.blue_noise_volume",
+        prog="python -m studies.blue_noise_volume",
         description="Blue noise against Tabulated Sobol on a cube of fog (docs/findings/blue_noise_volume.md).",
     )
     parser.add_argument("--quick", action="store_true", help="tiny budget (checks the pipeline, not the figures)")

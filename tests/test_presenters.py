@@ -1,0 +1,145 @@
+"""One comparison through every presenter: the command line, report.json, report.html, a suite's JUnit and
+dashboard, the Blender panel, and a check's looks table say the same verdict with the same numbers, to their
+printed precision, because each of them shows the outcome welch_core decided and none decides anything."""
+
+import html
+import json
+import re
+import textwrap
+import xml.etree.ElementTree as ET
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+import welch_core as wc
+from batch.decide import suite as suites
+from batch.present import fmt, words
+from batch.present.dashboard import write_dashboard
+from batch.present.junit import junit_xml
+from batch.present.pipeline import lines, present
+from batch.present.summary import check_record
+
+
+def runs(kind: str, n: int = 48):
+    rng = np.random.default_rng({"biased": 1, "equivalent": 5, "unbounded": 3, "identical": 4}[kind])
+    mean = np.full((4, 4, 3), 100.0)
+    shifted = mean * (1.02 if kind == "biased" else 1.0)
+    sd = {"biased": 1.0, "equivalent": 0.5, "unbounded": 8.0, "identical": 1.0}[kind]
+    ref_sums = rng.normal(mean, min(sd, 1.0), (n, 4, 4, 3))
+    test_sums = ref_sums.copy() if kind == "identical" else rng.normal(shifted, sd, (n, 4, 4, 3))
+    info = wc.RunInfo(scene="corner", overrides=("cycles.film_exposure=1.0",) if kind == "identical" else ())
+    ref = wc.TileStats.from_sums(ref_sums, range(n), 64, 64, 16, wc.RunInfo(scene="corner"))
+    seeds = range(n) if kind == "identical" else range(1000, 1000 + n)
+    test = wc.TileStats.from_sums(test_sums, seeds, 64, 64, 16, info)
+    return ref, test
+
+
+def page_data(path) -> dict:
+    text = path.read_text()
+    start = text.index('<script type="application/json" id="report-data">') + len(
+        '<script type="application/json" id="report-data">'
+    )
+    return json.loads(text[start : text.index("</script>", start)])
+
+
+def numbers(sentence: str) -> list[str]:
+    """Every number as the sentence prints it (percentages, p-values, counts)."""
+    return re.findall(r"[+-]?\d+(?:\.\d+)?(?:e[+-]?\d+)? ?%?", sentence)
+
+
+class Layout:
+    """What a panel draws, as text (the add-on's draw functions take any object with these methods)."""
+
+    def __init__(self, texts=None):
+        self.texts = [] if texts is None else texts
+        self.alert = False
+
+    def box(self):
+        return Layout(self.texts)
+
+    row = column = box
+
+    def label(self, text="", icon="NONE"):
+        self.texts.append(text)
+
+
+def through_every_presenter(tmp_path, comparison, ref, test, report):
+    """The verdict sentence each presenter shows, and the whole text it shows it in."""
+    shown = {}
+    cli = "\n".join(lines(report, tmp_path))
+    shown["command line"] = (cli.splitlines()[0].removeprefix("verdict: "), cli)
+    stored = json.loads((tmp_path / "report.json").read_text())
+    shown["report.json"] = (stored["sentence"], json.dumps(stored))
+    page = (tmp_path / "report.html").read_text()
+    sentence = re.search(r'<p class="sentence" id="sentence">(.*?)</p>', page).group(1)
+    shown["report.html"] = (html.unescape(sentence), html.unescape(page))
+    assert page_data(tmp_path / "report.html")["summary"]["sentence"] == stored["sentence"]
+    case = suites.Case(name="c", scene="corner")
+    result = suites.CaseResult(case, "CPU", "passed", report["verdict"], report["sentence"], 1.0, report["n_test"],
+                               str(tmp_path), report)  # fmt: skip
+    record = suites._outcome_record(result, tmp_path)
+    junit = ET.fromstring(junit_xml("s", [result])).find("testsuite/testcase/system-out").text
+    shown["JUnit"] = (junit.splitlines()[0], junit)
+    summary = {"suite": "s", "file": "s.toml", "refs": "refs", "alpha": 0.01, "exit_code": 0,
+               "counts": {"passed": 1}, "cases": [record]}  # fmt: skip
+    write_dashboard(tmp_path / "index.html", summary, [result], [tmp_path / "none.npz"])
+    board = html.unescape((tmp_path / "index.html").read_text())
+    shown["dashboard"] = (re.search(r'<div class="muted">([^<]*)</div></td><td>', board).group(1), board)
+    bpy = pytest.importorskip("bpy", reason="the panel's text needs the bpy module")  # noqa: F841
+    from blender_addon import results, ui
+
+    panel = results.summarize(comparison, ref, test, {"reference": "ref.npz", "test": "test.npz"})
+    layout = Layout()
+    ui.draw_verdict(layout, panel)
+    wrapped = len(textwrap.wrap(panel["sentence"], ui.SENTENCE_WIDTH))
+    shown["panel"] = (" ".join(layout.texts[1 : 1 + wrapped]), "\n".join(layout.texts))
+    return shown
+
+
+@pytest.mark.parametrize("kind", ["biased", "equivalent", "unbounded", "identical"])
+def test_one_comparison_says_the_same_everywhere(tmp_path, kind):
+    ref, test = runs(kind)
+    comparison = wc.compare(ref, test, tolerance=0.01 if kind != "biased" else None)
+    report = present(tmp_path, comparison, ref, test)
+    outcome = report["outcome"]
+    assert report["sentence"] == words.sentence(outcome) and outcome["verdict"] == comparison.verdict
+    expected = {"biased": "biased", "equivalent": "equivalent", "unbounded": "inconclusive", "identical": "equivalent"}
+    assert comparison.verdict == expected[kind]
+    for name, (sentence, text) in through_every_presenter(tmp_path, comparison, ref, test, report).items():
+        assert sentence == report["sentence"], name
+        assert numbers(sentence) == numbers(report["sentence"]), name
+        if outcome["reason"] != "identical" and name != "panel":
+            assert fmt.difference(outcome["whole_image"]) in text, name  # the whole image, as the outcome has it
+
+
+def test_a_check_says_its_last_looks_verdict_everywhere(tmp_path):
+    """A check's report: the verdict and numbers of its last look (not a fixed-sample test of the final passes),
+    the same in the sentence, the looks table and the outlines of the map."""
+    ref, test = runs("biased", 16)
+    plan = wc.SequentialPlan(max_passes=16, tolerance=0.01)
+    schedule = wc.look_schedule(16)
+    fractions, looks = [], []
+    for n in schedule:
+        fractions.append(n / 16)
+        look = wc.sequential_look(ref.subset(range(n)), test.subset(range(n)), plan, fractions)
+        looks.append({"passes": n, "fraction": n / 16, "verdict": look.verdict, "p_value": look.p_value,
+                      "threshold": look.threshold, "crossed": look.crossed,
+                      "ruled_out": look.outcome.claim.ruled_out, "ruled_out_tile": look.ruled_out_tile,
+                      "whole_image": look.outcome.whole_image.to_json(), "uncovered": 0, "seconds": 0.0})  # fmt: skip
+        if look.verdict is not None:
+            break
+    job = SimpleNamespace(max_seconds=None, tolerance=0.01, paired=False)
+    comparison = wc.compare(ref.subset(range(n)), test.subset(range(n)), tolerance=0.01)
+    report = present(tmp_path, comparison, ref.subset(range(n)), test.subset(range(n)), outcome=look.outcome,
+                     check=check_record(job, looks, 16, look))  # fmt: skip
+    assert report["outcome"]["design"] == "sequential" and report["verdict"] == look.outcome.verdict
+    assert report["sentence"] == words.sentence(look.outcome.to_json())
+    data = page_data(tmp_path / "report.html")
+    assert data["summary"]["check"]["looks"][-1]["whole_image"] == report["outcome"]["whole_image"]
+    outlined = np.frombuffer(__import__("base64").b64decode(data["tiles"]["significant"]), np.uint8)
+    assert (outlined.reshape(look.outcome.significant.shape) == look.outcome.significant).all()
+    shown = through_every_presenter(tmp_path, comparison, ref, test, report)
+    for name, (sentence, _text) in shown.items():
+        if name != "panel":  # the panel shows its own comparison's outcome (it runs no check yet)
+            assert sentence == report["sentence"], name
