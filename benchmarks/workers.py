@@ -34,7 +34,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from batch.jobs import side
+from batch.jobs import distributed
 from batch.jobs.distributed import PassPool, default_chunk, local_threads
 from batch.jobs.job import RenderJob
 from batch.jobs.side import run_job
@@ -69,7 +69,7 @@ def one_process(job: RenderJob) -> dict:
 def pool_run(job: RenderJob, workers: int, chunk: int) -> dict:
     """The passes of `job` on a LocalCluster of `workers`, in chunks of `chunk`, timed from before the cluster."""
     start = time.perf_counter()
-    with side.cluster(workers, None) as where, PassPool(job, where) as pool:
+    with distributed.cluster(workers, None) as where, PassPool(job, where) as pool:
         cluster = time.perf_counter() - start
         for first in range(0, len(job.seeds), chunk):
             pool.submit(job.seeds[first : first + chunk])

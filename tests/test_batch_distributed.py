@@ -24,7 +24,7 @@ distributed = pytest.importorskip("distributed", reason="needs the workers extra
 import welch_core as wc  # noqa: E402
 from batch.errors import BatchError  # noqa: E402
 from batch.jobs import distributed as dist  # noqa: E402
-from batch.jobs import protocol, side  # noqa: E402
+from batch.jobs import protocol  # noqa: E402
 from batch.jobs.job import RenderJob  # noqa: E402
 from batch.jobs.protocol import ChunkRequest, parse_request  # noqa: E402
 from batch.jobs.side import run_job  # noqa: E402
@@ -217,12 +217,12 @@ def test_chunk_sizes():
 def test_pool_arguments_are_checked_before_anything_starts(tmp_path):
     job = make_job(tmp_path / "x.npz")
     with pytest.raises(BatchError, match="give --workers or --scheduler, not both"):
-        with side.cluster(2, "tcp://127.0.0.1:1"):
+        with dist.cluster(2, "tcp://127.0.0.1:1"):
             pass
     with pytest.raises(BatchError, match="--lobes does not go with --workers or --scheduler yet"):
-        dist.PassPool(job.replace(lobes=("diffuse",)), side.Cluster("tcp://127.0.0.1:1"))
+        dist.PassPool(job.replace(lobes=("diffuse",)), dist.Cluster("tcp://127.0.0.1:1"))
     with pytest.raises(BatchError, match="--chunk must be a positive integer, got 0"):
-        dist.render_distributed(job, Recorder(24), side.Cluster("tcp://127.0.0.1:1"), chunk=0)
+        dist.render_distributed(job, Recorder(24), dist.Cluster("tcp://127.0.0.1:1"), chunk=0)
 
 
 def test_a_pool_takes_each_seed_of_its_job_once(tmp_path):
@@ -242,7 +242,7 @@ def test_a_pool_takes_each_seed_of_its_job_once(tmp_path):
 def test_an_unreachable_scheduler_is_an_input_error(tmp_path, monkeypatch):
     monkeypatch.setattr(dist, "CONNECT_TIMEOUT", "1s")
     with pytest.raises(BatchError, match="can't reach the Dask scheduler at tcp://127.0.0.1:9"):
-        dist.PassPool(make_job(tmp_path / "x.npz"), side.Cluster("tcp://127.0.0.1:9"))
+        dist.PassPool(make_job(tmp_path / "x.npz"), dist.Cluster("tcp://127.0.0.1:9"))
 
 
 @pytest.mark.parametrize(
@@ -332,7 +332,7 @@ def kill_in_the_middle_of_a_chunk(address: str, victim: str, found: dict, timeou
 def test_two_local_workers_give_the_statistics_of_one_process(reference, tmp_path):
     job = make_job(tmp_path / "two.npz")
     progress = Recorder(len(SEEDS))
-    with side.cluster(2, None) as where:
+    with dist.cluster(2, None) as where:
         stats = dist.render_distributed(job, progress, where, chunk=5)
     assert_same_statistics(stats, reference)
     assert_same_statistics(wc.load_stats(job.out), reference)
@@ -363,7 +363,7 @@ def test_a_process_killed_in_the_middle_of_its_chunk_costs_only_that_chunk(refer
     killer = threading.Thread(target=kill_in_the_middle_of_a_chunk, args=(cluster, victim, found), daemon=True)
     killer.start()
     progress = Recorder(len(SEEDS))
-    stats = dist.render_distributed(job, progress, side.Cluster(cluster, threads=1), chunk=CHUNK)
+    stats = dist.render_distributed(job, progress, dist.Cluster(cluster, threads=1), chunk=CHUNK)
     killer.join(5)
     assert found, "no render process was caught in the middle of a chunk"
     assert len(set(stats.seeds)) == len(stats.seeds) == len(SEEDS)
@@ -381,16 +381,16 @@ def test_ctrl_c_keeps_what_arrived_and_resume_completes_the_run(reference, clust
         os.kill(os.getpid(), signal.SIGTERM)
 
     with pytest.raises(KeyboardInterrupt):
-        dist.render_distributed(job, Recorder(len(SEEDS), on_pass=terminate), side.Cluster(cluster), chunk=CHUNK)
+        dist.render_distributed(job, Recorder(len(SEEDS), on_pass=terminate), dist.Cluster(cluster), chunk=CHUNK)
     kept = wc.load_stats(job.out)
     assert CHUNK <= kept.n < len(SEEDS) and len(set(kept.seeds)) == kept.n and set(kept.seeds) <= set(SEEDS)
     # The outstanding chunks were cancelled and the job's render processes ended.
     assert all(not servers for servers in render_processes(cluster).values())
     with pytest.raises(BatchError, match="already exists: pass --resume"):
-        dist.render_distributed(job, Recorder(len(SEEDS)), side.Cluster(cluster))
+        dist.render_distributed(job, Recorder(len(SEEDS)), dist.Cluster(cluster))
 
     progress = Recorder(len(SEEDS))
-    stats = dist.render_distributed(job.replace(resume=True), progress, side.Cluster(cluster), chunk=CHUNK)
+    stats = dist.render_distributed(job.replace(resume=True), progress, dist.Cluster(cluster), chunk=CHUNK)
     assert progress.events[0] == protocol.Started(total=24, todo=24 - kept.n, out=job.out)
     rendered = [e.seed for e in progress.events if isinstance(e, protocol.PassDone)]
     assert sorted(rendered + kept.seeds) == list(SEEDS)
@@ -402,7 +402,7 @@ def test_ctrl_c_keeps_what_arrived_and_resume_completes_the_run(reference, clust
 def test_a_blend_a_worker_cannot_open_stops_the_run_naming_the_worker(cluster, tmp_path):
     job = make_job(tmp_path / "missing.npz", scene=None, blend=str(tmp_path / "not-on-this-worker.blend"))
     with pytest.raises(BatchError, match=r"worker tcp://.*not-on-this-worker\.blend"):
-        dist.render_distributed(job, Recorder(len(SEEDS)), side.Cluster(cluster), chunk=CHUNK)
+        dist.render_distributed(job, Recorder(len(SEEDS)), dist.Cluster(cluster), chunk=CHUNK)
     assert not os.path.exists(job.out)
 
 
@@ -420,7 +420,7 @@ def test_workers_render_with_a_blender_binary(cluster, tmp_path):
     run_job(job, Recorder(8))
     one = wc.load_stats(job.out)
     stats = dist.render_distributed(
-        job.replace(out=str(tmp_path / "two.npz")), Recorder(8), side.Cluster(cluster), chunk=3
+        job.replace(out=str(tmp_path / "two.npz")), Recorder(8), dist.Cluster(cluster), chunk=3
     )
     assert stats.info.renderer_version == one.info.renderer_version != ""
     assert_same_statistics(stats, one)
@@ -432,7 +432,7 @@ def test_a_relative_blend_path_means_the_clients_folder(cluster, tmp_path, monke
     subprocess.run([sys.executable, "-c", save, str(tmp_path / "cube.blend")], check=True, capture_output=True)
     monkeypatch.chdir(tmp_path)  # the workers run elsewhere
     job = RenderJob(out="cube.npz", seeds=(0, 1, 2), blend="cube.blend", resolution=(32, 32), tile=16)
-    stats = dist.render_distributed(job, Recorder(3), side.Cluster(cluster), chunk=2)
+    stats = dist.render_distributed(job, Recorder(3), dist.Cluster(cluster), chunk=2)
     assert stats.seeds == [0, 1, 2] and stats.info.scene == "cube.blend/Scene"
 
 

@@ -377,8 +377,7 @@ def cmd_render(args) -> int:
     if args.workers or args.scheduler:
         if args.serve:
             raise BatchError("--serve renders in this process: it does not go with --workers or --scheduler")
-        from ..jobs.distributed import render_distributed
-        from ..jobs.side import cluster
+        from ..jobs.distributed import cluster, render_distributed
 
         with cluster(args.workers, args.scheduler, work=len(job.seeds)) as where:
             render_distributed(job, progress, where, chunk=args.chunk)

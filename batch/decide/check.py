@@ -23,8 +23,9 @@ from pathlib import Path
 from .._siblings import welch_core as wc
 from ..errors import BatchError
 from ..jobs import protocol
+from ..jobs.distributed import Cluster, ClusterSide, cluster
 from ..jobs.job import RenderJob
-from ..jobs.side import Cluster, Side, cluster
+from ..jobs.side import Side
 from ..present.progress import Progress
 
 STATE_FILE = "check.json"
@@ -96,7 +97,9 @@ class Check:
 
         def side(name: str, side_job: RenderJob) -> Side:
             live = Progress(len(side_job.seeds), label=name, live=True) if progress.live else None
-            return Side(name, side_job, live, warn=progress.warning, cluster=cluster)
+            if cluster is not None:
+                return ClusterSide(name, side_job, cluster, live, warn=progress.warning)
+            return Side(name, side_job, live, warn=progress.warning)
 
         self.reference, self.test = side("reference", job.reference), side("test", job.test)
         self.rendered = [self.test] if job.fixed_reference else [self.reference, self.test]

@@ -51,8 +51,8 @@ from pathlib import Path
 from .._siblings import welch_core as wc
 from ..errors import BatchError
 from ..jobs import options
+from ..jobs.distributed import cluster as side_cluster
 from ..jobs.job import BUILTIN_SCENES, NO_GPU_MESSAGE, RenderJob
-from ..jobs.side import cluster as side_cluster
 from .check import CheckJob, run_check
 
 #: The suite that ships with the tool: one minimal scene per Cycles feature, and its references.

@@ -23,6 +23,7 @@ without Blender.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import os
@@ -46,7 +47,7 @@ from .job import RenderJob
 from .launch import THREADS_ENV
 from .lock import OutputLock, process_alive
 from .seeds import format_seeds
-from .side import Cluster, Side
+from .side import Side
 
 #: Chunks per worker thread when no chunk size is given: enough to even out workers of unequal speed and to lose
 #: at most about a quarter of a worker's share when it dies; and at most `MAX_CHUNK` passes, so checkpoints come
@@ -483,6 +484,85 @@ class PassPool:
                 self.client.run(close_servers, self.token, on_error="ignore")
         finally:
             self.client.close()
+
+
+@dataclass(frozen=True)
+class Cluster:
+    """Where passes render on Dask: a scheduler's address, and the Cycles threads of each render process there
+    (None: Cycles' own choice)."""
+
+    address: str
+    threads: int | None = None
+
+
+@contextlib.contextmanager
+def cluster(workers: int | None, scheduler: str | None, work: int | None = None):
+    """A `Cluster` for ``--workers N`` (a LocalCluster of N processes on this machine, started here and shut
+    down at the end; no more of them than the `work` there is, in passes) or ``--scheduler ADDRESS`` (reached,
+    and refused in one line if nothing answers), or None for neither: the passes then render in processes of
+    their own."""
+    if workers and scheduler:
+        raise BatchError("give --workers or --scheduler, not both")
+    if not (workers or scheduler):
+        yield None
+        return
+    if scheduler:
+        yield Cluster(check_scheduler(scheduler))
+        return
+    workers = min(workers, work) if work else workers  # a process a pass at most: 1000 workers for 4 passes start 4
+    with local_cluster(workers) as local:
+        yield Cluster(local.scheduler_address, local_threads(workers))
+
+
+class ClusterSide(Side):
+    """A render side (`batch.jobs.side.Side`) whose passes render on a Dask cluster: each request becomes chunks
+    of a `PassPool`, collected (blocking) as they arrive and saved in seed order, as one process saves them."""
+
+    def __init__(self, name: str, job: RenderJob, cluster: Cluster, progress=None, warn=None):
+        super().__init__(name, job, progress, warn)
+        self.cluster = cluster
+        self.pool: PassPool | None = None
+
+    def start(self) -> None:
+        if os.path.exists(self.job.out):
+            self.passes = wc.load_stats(self.job.out, pixels=False).n
+        self.pool = PassPool(self.job, self.cluster)
+        if self.progress is not None:
+            self.progress.start(self.passes, self.job.out)
+
+    def stop(self) -> None:
+        if self.pool is not None:
+            self.pool.close()
+            self.pool = None
+
+    finish = stop
+
+    def request(self, passes: int) -> None:
+        passes = min(passes, len(self.job.seeds))
+        if passes <= self.passes:
+            return
+        self._asked = passes
+        seeds = list(self.job.seeds[self.passes : passes])
+        size = default_chunk(len(seeds), self.pool.parallelism() or 1)
+        for first in range(0, len(seeds), size):
+            self.pool.submit(seeds[first : first + size])
+
+    def poll(self) -> bool:
+        """Collect the chunks asked for as they arrive (blocking until the last) and save them."""
+        if not self._asked:
+            return True
+        stats = wc.load_stats(self.job.out) if os.path.exists(self.job.out) else None
+        for result in self.pool:
+            stats = accumulate(stats, result, self.job)
+            for message in result.warnings:
+                self._warn(f"{result.worker}: {message}")
+            if self.progress is not None:
+                for seed in result.seeds:
+                    self.progress.pass_done(seed, result.wall_seconds / max(len(result.seeds), 1))
+        if stats is not None:
+            self.passes = save_in_seed_order(self.job, stats).n
+        self._asked = 0
+        return True
 
 
 # -- a whole run ----------------------------------------------------------------------------------------------

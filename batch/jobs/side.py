@@ -5,19 +5,17 @@ outcome: `BatchError` for the job's own input, KeyboardInterrupt when it was int
 RuntimeError otherwise.
 
 ``render --blender`` (a whole job in another Blender), ``check`` (both sides, chunk by chunk), ``suite`` (through
-``check``, and ``suite bless``), the Dask workers (a chunk of given seeds at a time) and the Blender add-on (a
-side polled from a timer) all drive their renders through `Side`; `cluster` is the one place a Dask cluster is
-started or reached for them.
+``check``, and ``suite bless``), the Dask workers (a chunk of given seeds at a time: `render_chunk`) and the
+Blender add-on (a side polled from a timer) all drive their renders through `Side`;
+`batch.jobs.distributed.ClusterSide` is a side whose passes render on a Dask cluster.
 
 Nothing here imports bpy or scipy.
 """
 
 from __future__ import annotations
 
-import contextlib
 import os
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 from .._siblings import welch_core as wc
@@ -31,87 +29,40 @@ from .protocol import ChunkRequest, Exit
 FINISH_WAIT = 60.0
 
 
-@dataclass(frozen=True)
-class Cluster:
-    """Where passes render on Dask: a scheduler's address, and the Cycles threads of each render process there
-    (None: Cycles' own choice)."""
-
-    address: str
-    threads: int | None = None
-
-
-@contextlib.contextmanager
-def cluster(workers: int | None, scheduler: str | None, work: int | None = None):
-    """A `Cluster` for ``--workers N`` (a LocalCluster of N processes on this machine, started here and shut
-    down at the end; no more of them than the `work` there is, in passes) or ``--scheduler ADDRESS`` (reached,
-    and refused in one line if nothing answers), or None for neither: the passes then render in processes of
-    their own."""
-    if workers and scheduler:
-        raise BatchError("give --workers or --scheduler, not both")
-    if not (workers or scheduler):
-        yield None
-        return
-    from . import distributed
-
-    if scheduler:
-        yield Cluster(distributed.check_scheduler(scheduler))
-        return
-    workers = min(workers, work) if work else workers  # a process a pass at most: 1000 workers for 4 passes start 4
-    with distributed.local_cluster(workers) as local:
-        yield Cluster(local.scheduler_address, distributed.local_threads(workers))
-
-
 class Side:
     """One render side of a run: `start`, then `request` passes (up to a count) and `wait` (or `poll`) until they
     are saved, and `finish`; `stop` ends it at once, keeping what it saved.
 
     `progress` receives the side's events (a `batch.present.progress.Progress`, or anything with its methods);
-    `warn` the warnings, prefixed with the side's name. With `cluster` the passes render there instead.
+    `warn` the warnings, prefixed with the side's name; `env` is the render process's environment (default:
+    this process's). `batch.jobs.distributed.ClusterSide` is the same side rendered on a Dask cluster.
     """
 
-    def __init__(self, name: str, job: RenderJob, progress=None, warn=None, cluster: Cluster | None = None,
-                 env: dict[str, str] | None = None):  # fmt: skip
+    def __init__(self, name: str, job: RenderJob, progress=None, warn=None, env: dict[str, str] | None = None):
         self.name = name
-        self.env = env  # the render process's environment (default: this process's)
+        self.env = env
         self.job = job
         self.progress = progress
         self.warn = warn
-        self.cluster = cluster
         self.passes = 0  # in the statistics file
         self.process: JobProcess | None = None
-        self.pool = None
         self._asked = 0  # passes the current request waits for (0: none outstanding)
 
     # -- start and stop --------------------------------------------------------------------------------------
 
     def start(self) -> None:
-        """Count the passes already in the statistics file (a resumed run) and start rendering: the serving
-        process, or the pool on the cluster."""
+        """Count the passes already in the statistics file (a resumed run) and start the serving process."""
         if Path(self.job.out).exists():
             self.passes = wc.load_stats(self.job.out, pixels=False).n
-        if self.cluster is not None:
-            from .distributed import PassPool
-
-            self.pool = PassPool(self.job, scheduler=self.cluster.address, threads=self.cluster.threads)
-            if self.progress is not None:
-                self.progress.start(self.passes, self.job.out)
-        else:
-            self.process = JobProcess(job_command(self.job, base_env=self.env, serve=True), requests=True)
+        self.process = JobProcess(job_command(self.job, base_env=self.env, serve=True), requests=True)
 
     def stop(self) -> None:
-        """End the side now: its process finishes its current pass and saves (or is killed), its pool's
-        outstanding chunks are cancelled."""
+        """End the side now: its process finishes its current pass and saves (or is killed)."""
         if self.process is not None:
             self.process.stop()
-        if self.pool is not None:
-            self.pool.close()
-            self.pool = None
 
     def finish(self) -> None:
-        """No more passes: the serving process saves, ends and is checked; the pool is shut down."""
-        if self.pool is not None:
-            self.pool.close()
-            self.pool = None
+        """No more passes: the serving process saves, ends and is checked."""
         if self.process is None:
             return
         self.process.close_requests()
@@ -128,23 +79,12 @@ class Side:
         if passes <= self.passes:
             return
         self._asked = passes
-        if self.pool is not None:
-            from .distributed import default_chunk
-
-            seeds = [s for s in self.job.seeds[self.passes : passes]]
-            size = default_chunk(len(seeds), self.pool.parallelism() or 1)
-            for first in range(0, len(seeds), size):
-                self.pool.submit(seeds[first : first + size])
-        else:
-            self.process.request(passes - self.passes)
+        self.process.request(passes - self.passes)
 
     def poll(self) -> bool:
-        """Relay what the side did; True once the passes asked for are saved (or none are outstanding).
-        Never blocks for a process; a pool's chunks are collected as they come (blocking until the last)."""
+        """Relay what the side did; True once the passes asked for are saved (or none are outstanding). Never
+        blocks."""
         if not self._asked:
-            return True
-        if self.pool is not None:
-            self._collect()
             return True
         saved = self._relay()
         if saved is not None:
@@ -178,21 +118,6 @@ class Side:
             if code is not None and self.process.events.empty():
                 self._failed(code)
             time.sleep(0.005)
-
-    def _collect(self) -> None:
-        from .distributed import accumulate, save_in_seed_order
-
-        stats = wc.load_stats(self.job.out) if Path(self.job.out).exists() else None
-        for result in self.pool:
-            stats = accumulate(stats, result, self.job)
-            for message in result.warnings:
-                self._warn(f"{result.worker}: {message}")
-            if self.progress is not None:
-                for seed in result.seeds:
-                    self.progress.pass_done(seed, result.wall_seconds / max(len(result.seeds), 1))
-        if stats is not None:
-            self.passes = save_in_seed_order(self.job, stats).n
-        self._asked = 0
 
     # -- events and failures ---------------------------------------------------------------------------------
 
