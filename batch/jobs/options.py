@@ -45,17 +45,22 @@ def integer(name: str, value, low: int, high: int) -> int:
     return number
 
 
-def seconds(name: str, value) -> float:
-    """A positive, finite number of seconds (at most `MAX_SECONDS`), from a number or its text."""
-    number = value
+def _number(value) -> float | None:
+    """A number from a number or its text; None for anything else (a bool, other text)."""
     if isinstance(value, str):
         try:
-            number = float(value)
+            return float(value)
         except ValueError:
-            number = None
-    if isinstance(number, bool) or not isinstance(number, int | float) or not 0 < number <= MAX_SECONDS:
+            return None
+    return None if isinstance(value, bool) or not isinstance(value, int | float) else float(value)
+
+
+def seconds(name: str, value) -> float:
+    """A positive, finite number of seconds (at most `MAX_SECONDS`), from a number or its text."""
+    number = _number(value)
+    if number is None or not 0 < number <= MAX_SECONDS:
         raise BatchError(f"{name} must be a number of seconds in (0, {MAX_SECONDS:.0f}], got {_show(value)}")
-    return float(number)
+    return number
 
 
 def percentage(name: str, value) -> float:
@@ -74,15 +79,10 @@ def percentage(name: str, value) -> float:
 
 def probability(name: str, value) -> float:
     """A number in (0, 1) (a false-positive rate), from a number or its text."""
-    number = value
-    if isinstance(value, str):
-        try:
-            number = float(value)
-        except ValueError:
-            number = None
-    if isinstance(number, bool) or not isinstance(number, int | float) or not 0 < number < 1:
+    number = _number(value)
+    if number is None or not 0 < number < 1:
         raise BatchError(f"{name} must be a number in (0, 1), got {_show(value)}")
-    return float(number)
+    return number
 
 
 def choice(name: str, value, choices: tuple[str, ...]) -> str:
