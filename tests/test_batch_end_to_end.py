@@ -203,9 +203,14 @@ def test_corrupt_blend_file(tmp_path):
     assert done.returncode == 2 and "cannot open as a .blend file" in done.stderr
 
 
-def test_unwritable_output_folder(tmp_path):
-    done = batch("render", "--scene", "corner", "--seeds", "0:2", "--spp", 1, "--out", tmp_path / "no" / "x.npz")
-    assert done.returncode == 2 and "the folder is missing or not writable" in done.stderr
+def test_a_missing_output_folder_is_made_and_an_impossible_one_refused(tmp_path):
+    out = tmp_path / "runs" / "x.npz"  # as check --out does, render --out makes its folder
+    done = batch("render", "--scene", "corner", "--resolution", 16, 16, "--tile", 8, "--seeds", "0:2", "--spp", 1,
+                 "--out", out)  # fmt: skip
+    assert done.returncode == 0 and out.is_file(), done.stderr
+    (tmp_path / "file").write_text("a file, not a folder")
+    done = batch("render", "--scene", "corner", "--seeds", "0:2", "--spp", 1, "--out", tmp_path / "file" / "x.npz")
+    assert done.returncode == 2 and f"can't create the folder {tmp_path / 'file'}" in done.stderr
 
 
 def test_lint_of_a_factory_scene(tmp_path):

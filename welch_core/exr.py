@@ -215,19 +215,33 @@ def write_exr(path: str | os.PathLike, image: npt.ArrayLike) -> None:
 
     A failed write (a full disk) raises OSError and leaves any previous file in place.
     """
+    from .formats import atomic_write  # the one way files are written
+
+    data = exr_bytes(image)
+    atomic_write(Path(path), lambda f: f.write(data))
+
+
+def exr_bytes(image: npt.ArrayLike) -> bytes:
+    """The uncompressed 32-bit float EXR of an H×W or H×W×C (C in 1, 3, 4) float array, as bytes."""
     img = np.asarray(image, dtype=np.float32)
     if img.ndim == 2:
         img = img[..., None]
     if img.ndim != 3 or img.shape[2] not in (1, 3, 4) or 0 in img.shape:
         raise WelchInputError(f"`image` must be H×W or H×W×(1, 3 or 4), got shape {np.shape(image)}")
     names = ["Y"] if img.shape[2] == 1 else list("RGBA"[: img.shape[2]])
-    write_exr_channels(path, {n: img[..., i] for i, n in enumerate(names)})
+    return exr_channels_bytes({n: img[..., i] for i, n in enumerate(names)})
 
 
 def write_exr_channels(path: str | os.PathLike, channels: dict[str, np.ndarray]) -> None:
     """Write named H×W channels as an uncompressed 32-bit float scanline EXR, atomically."""
     from .formats import atomic_write  # the one way files are written
 
+    data = exr_channels_bytes(channels)
+    atomic_write(Path(path), lambda f: f.write(data))
+
+
+def exr_channels_bytes(channels: dict[str, np.ndarray]) -> bytes:
+    """Named H×W channels as an uncompressed 32-bit float scanline EXR, as bytes."""
     names = sorted(channels)
     planes = [np.asarray(channels[n], dtype="<f4") for n in names]
     height, width = planes[0].shape
@@ -257,4 +271,4 @@ def write_exr_channels(path: str | os.PathLike, channels: dict[str, np.ndarray])
         lines[f"c{i}"] = plane
     first = len(header) + 8 * height
     offsets = (first + line.itemsize * np.arange(height)).astype("<u8")
-    atomic_write(Path(path), lambda f: (f.write(header), f.write(offsets.tobytes()), f.write(lines.tobytes())))
+    return header + offsets.tobytes() + lines.tobytes()

@@ -45,7 +45,15 @@ from .colormap import shrink
 from .errors import StatsFileError, WelchInputError
 from .tiles import MAX_IMAGE_SIDE, RunInfo, TileStats
 
-__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "atomic_write", "load_layers", "load_stats", "save_stats"]
+__all__ = [
+    "FORMAT_NAME",
+    "FORMAT_VERSION",
+    "atomic_write",
+    "atomic_write_all",
+    "load_layers",
+    "load_stats",
+    "save_stats",
+]
 
 FORMAT_NAME = "welch-bias-stats"
 FORMAT_VERSION = 2
@@ -66,6 +74,8 @@ def atomic_write(path: str | os.PathLike, write: Callable, verify: Callable[[Pat
     and raises. The file gets the permissions of the user's umask, like any file a program creates.
     """
     path = Path(path)
+    if path.is_dir():
+        raise WelchInputError(f"{path} is a folder, not a file: remove it or write elsewhere")
     # A short temporary name: a long but legal target name must not make it too long for the file system.
     tmp = path.parent / f".welch-{secrets.token_hex(6)}.tmp"
     try:
@@ -79,6 +89,33 @@ def atomic_write(path: str | os.PathLike, write: Callable, verify: Callable[[Pat
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)
+        raise
+
+
+def atomic_write_all(files: dict) -> None:
+    """Write several files as one: every content (bytes) goes to a temporary file next to its path first, and only
+    when all are written are they renamed over their paths, so a failure (a full disk) leaves every previous file
+    as it was, and a report never has a new page beside an old summary. A path that is a folder is refused by
+    name, before anything is written."""
+    for path in files:
+        if Path(path).is_dir():
+            raise WelchInputError(f"{path} is a folder, not a file: remove it or write elsewhere")
+    written = []
+    try:
+        for path, data in files.items():
+            path = Path(path)
+            tmp = path.parent / f".welch-{secrets.token_hex(6)}.tmp"
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+            written.append((tmp, path))
+            with os.fdopen(fd, "wb") as f:
+                f.write(data)
+                f.flush()
+                os.fsync(f.fileno())
+        for tmp, path in written:
+            os.replace(tmp, path)
+    except BaseException:
+        for tmp, _path in written:
+            tmp.unlink(missing_ok=True)
         raise
 
 

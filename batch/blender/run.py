@@ -15,7 +15,7 @@ from ..errors import BatchError
 from ..jobs import protocol
 from ..jobs.job import RenderJob
 from ..jobs.launch import THREADS_ENV
-from ..jobs.lock import OutputLock
+from ..jobs.lock import OutputLock, output_folder
 from ..jobs.overrides import apply_overrides, parse_override
 from ..jobs.passes import add_layered_pass, add_pass
 from ..jobs.protocol import ChunkRequest, parse_request
@@ -133,9 +133,7 @@ def render_run(job: RenderJob, progress: Progress, requests=None) -> wc.TileStat
     seeds into its own new file (a worker's chunk, `batch.distributed`) and leaves `job.out` alone. Each chunk
     ends with a `Saved` event naming the file it saved.
     """
-    out_dir = os.path.dirname(os.path.abspath(job.out))
-    if not os.access(out_dir, os.W_OK):
-        raise RunError(f"can't write into {out_dir}: the folder is missing or not writable")
+    output_folder(job.out)
     with OutputLock(job.out):
         scene, info = prepare_scene(job, progress.warning)
         limit_threads(scene)

@@ -53,6 +53,7 @@ from ..errors import BatchError
 from ..jobs import options
 from ..jobs.distributed import cluster as side_cluster
 from ..jobs.job import BUILTIN_SCENES, NO_GPU_MESSAGE, RenderJob
+from ..jobs.protocol import Exit
 from .check import CheckJob, run_check
 
 #: The suite that ships with the tool: one minimal scene per Cycles feature, and its references.
@@ -372,15 +373,16 @@ def status_of(case: Case, verdict: wc.Verdict) -> str:
 
 def exit_code(outcomes: list[CaseResult]) -> int:
     """1 when a case is `biased` where it should not be (1 means biased and nothing else), else 2 when a case could
-    not run, else 3 when a case is inconclusive or an expected difference was not found (the suite can't confirm
-    every case), else 0 (skipped cases do not count)."""
+    not run, or when nothing ran at all (every case skipped: no device, say), else 3 when a case is inconclusive
+    or an expected difference was not found (the suite can't confirm every case), else 0 (skipped cases beside
+    passed ones do not count)."""
     if any(o.status == "failed" and o.verdict == wc.Verdict.BIASED for o in outcomes):
-        return 1
-    if any(o.status == "error" for o in outcomes):
-        return 2
+        return Exit.BIASED
+    if any(o.status == "error" for o in outcomes) or all(o.status == "skipped" for o in outcomes):
+        return Exit.USAGE
     if any(o.status in ("inconclusive", "failed") for o in outcomes):
-        return 3
-    return 0
+        return Exit.INCONCLUSIVE
+    return Exit.OK
 
 
 def run_suite(suite: Suite, cases: list[Case], refs: Path, out: Path, progress_factory, blender=None,

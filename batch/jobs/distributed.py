@@ -45,7 +45,7 @@ from ..errors import BatchError
 from . import protocol
 from .job import RenderJob
 from .launch import THREADS_ENV
-from .lock import OutputLock, process_alive
+from .lock import OutputLock, output_folder, process_alive
 from .seeds import format_seeds
 from .side import Side
 
@@ -586,9 +586,7 @@ def render_distributed(
     """
     if chunk is not None and (isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1):
         raise BatchError(f"--chunk must be a positive integer, got {chunk!r}")
-    out_dir = os.path.dirname(os.path.abspath(job.out))
-    if not os.access(out_dir, os.W_OK):
-        raise BatchError(f"can't write into {out_dir}: the folder is missing or not writable")
+    output_folder(job.out)
     with OutputLock(job.out):
         stats = _resumed(job)
         done = set(stats.seeds) if stats is not None else set()

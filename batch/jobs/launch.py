@@ -8,6 +8,7 @@ The driver of a render side (`batch.jobs.side`) starts its processes here. Nothi
 from __future__ import annotations
 
 import collections
+import functools
 import os
 import queue
 import signal
@@ -72,6 +73,32 @@ def job_command(
     paths = [str(ROOT), *python_paths, *filter(None, env.get("PYTHONPATH", "").split(os.pathsep))]
     env["PYTHONPATH"] = os.pathsep.join(dict.fromkeys(paths))
     return Command([python, "-m", "batch", "render", *child.to_argv(), *mode], env)
+
+
+#: Seconds a `--blender` has to answer ``--version`` (a binary that hangs is refused, not waited for).
+VERSION_TIMEOUT = 60.0
+
+
+@functools.cache
+def blender_version(path: str) -> str:
+    """The version a Blender binary reports (``Blender 4.5.4 LTS``), checked once per path: BatchError in one line
+    when `path` can't be run, hangs, crashes, or answers ``--version`` with anything but a Blender's banner."""
+    try:
+        done = subprocess.run([path, "--version"], capture_output=True, text=True, errors="replace",
+                              timeout=VERSION_TIMEOUT, env={**os.environ, "PYTHONPATH": ""})  # fmt: skip
+    except FileNotFoundError:
+        raise BatchError(f"--blender {path}: no such program") from None
+    except PermissionError:
+        raise BatchError(f"--blender {path}: not executable") from None
+    except subprocess.TimeoutExpired:
+        raise BatchError(f"--blender {path} did not answer --version within {VERSION_TIMEOUT:.0f} s") from None
+    except OSError as exc:
+        raise BatchError(f"--blender {path}: can't run it ({exc.strerror or exc})") from None
+    banner = next((line.strip() for line in done.stdout.splitlines() if line.startswith("Blender ")), None)
+    if done.returncode != 0 or banner is None or not any(c.isdigit() for c in banner):
+        said = " ".join(done.stdout.split())[:80] or f"nothing, exit code {done.returncode}"
+        raise BatchError(f"--blender {path} is not Blender: --version printed {said!r}")
+    return banner
 
 
 class JobProcess:

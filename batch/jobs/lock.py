@@ -26,7 +26,10 @@ class OutputLock:
 
     def __enter__(self) -> OutputLock:
         while True:
-            fd = os.open(self.lock_path, os.O_RDWR | os.O_CREAT, 0o666)
+            try:
+                fd = os.open(self.lock_path, os.O_RDWR | os.O_CREAT, 0o666)
+            except OSError as exc:
+                raise BatchError(f"can't create the lock file {self.lock_path}: {exc.strerror or exc}") from None
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
@@ -44,8 +47,14 @@ class OutputLock:
             if same:
                 break
             os.close(fd)
-        os.ftruncate(fd, 0)
-        os.write(fd, str(os.getpid()).encode())
+        try:
+            os.ftruncate(fd, 0)
+            if os.write(fd, str(os.getpid()).encode()) == 0:
+                raise OSError(28, "No space left on device")
+        except OSError as exc:  # a full disk: no lock file left behind, and the error names it
+            self.lock_path.unlink(missing_ok=True)
+            os.close(fd)
+            raise BatchError(f"can't write the lock file {self.lock_path}: {exc.strerror or exc}") from None
         self._fd = fd
         return self
 
@@ -65,3 +74,16 @@ def process_alive(pid: int) -> bool:
     except PermissionError:
         return True  # someone else's process
     return True
+
+
+def output_folder(path: str | os.PathLike) -> Path:
+    """The folder `path` is written into, created where it is missing (``--out runs/x.npz`` makes ``runs/``);
+    BatchError in one line where it can't be made or written into."""
+    folder = Path(os.path.abspath(path)).parent
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise BatchError(f"can't create the folder {folder}: {exc.strerror or exc}") from None
+    if not os.access(folder, os.W_OK):
+        raise BatchError(f"can't write into {folder}: the folder is not writable")
+    return folder

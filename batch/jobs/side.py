@@ -22,7 +22,7 @@ from .._siblings import welch_core as wc
 from ..errors import BatchError
 from . import protocol
 from .job import RenderJob
-from .launch import JobProcess, job_command
+from .launch import JobProcess, blender_version, job_command
 from .protocol import ChunkRequest, Exit
 
 #: Seconds to wait for a render process to end once its requests are closed.
@@ -51,7 +51,10 @@ class Side:
     # -- start and stop --------------------------------------------------------------------------------------
 
     def start(self) -> None:
-        """Count the passes already in the statistics file (a resumed run) and start the serving process."""
+        """Count the passes already in the statistics file (a resumed run) and start the serving process (a
+        `--blender` is checked to be Blender first)."""
+        if self.job.blender:
+            blender_version(self.job.blender)
         if Path(self.job.out).exists():
             self.passes = wc.load_stats(self.job.out, pixels=False).n
         self.process = JobProcess(job_command(self.job, base_env=self.env, serve=True), requests=True)

@@ -47,7 +47,9 @@ def write_dashboard(path: Path, summary: dict, outcomes, references: list[Path])
     counts = "".join(
         f'<span style="color:{_STATUS_COLOURS[k]}">{v} {k}</span>' for k, v in summary["counts"].items() if v
     )
-    verdict = {0: "every case passed", 1: "a case failed", 2: "a case could not run", 3: "a case is inconclusive"}
+    nothing_ran = all(o.status == "skipped" for o in outcomes)
+    verdict = {0: "every case passed", 1: "a case failed", 2: "nothing ran: every case was skipped" if nothing_ran
+               else "a case could not run", 3: "a case is inconclusive"}  # fmt: skip
     page = f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>Suite {html.escape(summary["suite"])}: \
 {verdict[summary["exit_code"]]}</title>

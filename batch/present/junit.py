@@ -2,7 +2,17 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
+
+#: Characters XML 1.0 does not allow (C0 controls but tab, newline and carriage return): a renderer's message
+#: may hold them, and one of them makes the whole file unreadable to a CI server.
+_NOT_XML = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f\ud800-\udfff\ufffe\uffff]")
+
+
+def xml_text(text: str) -> str:
+    """`text` with the characters XML can't hold shown as U+FFFD."""
+    return _NOT_XML.sub("\ufffd", str(text))
 
 
 def junit_xml(suite: str, outcomes) -> bytes:
@@ -16,7 +26,7 @@ def junit_xml(suite: str, outcomes) -> bytes:
     group = ET.SubElement(
         root,
         "testsuite",
-        name=suite,
+        name=xml_text(suite),
         tests=str(len(outcomes)),
         failures=str(counts["failed"] + counts["inconclusive"]),
         errors=str(counts["error"]),
@@ -24,15 +34,16 @@ def junit_xml(suite: str, outcomes) -> bytes:
         time=f"{sum(o.seconds for o in outcomes):.3f}",
     )
     for o in outcomes:
-        case = ET.SubElement(group, "testcase", classname=f"{suite}.{o.device}", name=o.case.name,
+        case = ET.SubElement(group, "testcase", classname=xml_text(f"{suite}.{o.device}"), name=xml_text(o.case.name),
                              time=f"{o.seconds:.3f}")  # fmt: skip
+        message = xml_text(o.message)
         if o.status in ("failed", "inconclusive"):
-            ET.SubElement(case, "failure", message=f"{o.verdict}: {o.message}", type=o.status)
+            ET.SubElement(case, "failure", message=f"{o.verdict}: {message}", type=o.status)
         elif o.status == "error":
-            ET.SubElement(case, "error", message=o.message, type="error")
+            ET.SubElement(case, "error", message=message, type="error")
         elif o.status == "skipped":
-            ET.SubElement(case, "skipped", message=o.message)
+            ET.SubElement(case, "skipped", message=message)
         out = ET.SubElement(case, "system-out")
-        out.text = o.message + (f"\nreport: {Path(o.folder) / 'report.html'}" if o.folder else "")
+        out.text = message + (xml_text(f"\nreport: {Path(o.folder) / 'report.html'}") if o.folder else "")
     ET.indent(root)
     return ET.tostring(root, encoding="utf-8", xml_declaration=True)

@@ -54,29 +54,31 @@ def write_report(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = {"pvalues_exr": "pvalues.exr", "html": "report.html"}
-    wc.write_exr(out / "pvalues.exr", np.nan_to_num(result.pvalues, nan=-1.0))
+    contents = {out / "pvalues.exr": wc.exr.exr_bytes(np.nan_to_num(result.pvalues, nan=-1.0))}
     if full_maps:
-        files |= _full_maps(out, result, test if test.mean_image is not None else ref)
+        maps = _full_maps(result, test if test.mean_image is not None else ref)
+        files |= {key: name for key, (name, _data) in maps.items()}
+        contents |= {out / name: data for name, data in maps.values()}
     report = dict(summary, files=files)
-    write_text(out / "report.json", json.dumps(report, indent=2, allow_nan=False))
     significant = result.significant if significant is None else significant
-    write_text(out / "report.html", render_html(report, result, ref, test, previews, layers, significant))
+    contents[out / "report.json"] = json.dumps(report, indent=2, allow_nan=False).encode("utf-8")
+    page = render_html(report, result, ref, test, previews, layers, significant)
+    contents[out / "report.html"] = page.encode("utf-8")
+    wc.formats.atomic_write_all(contents)  # replaced whole or not at all: no new page beside an old summary
     return report
 
 
-def write_text(path: Path, text: str) -> None:
-    """Write a text file atomically (a failure leaves the previous file and raises)."""
-    wc.formats.atomic_write(path, lambda f: f.write(text.encode("utf-8")))
-
-
-def _full_maps(out: Path, result: wc.Comparison, run: wc.TileStats) -> dict:
+def _full_maps(result: wc.Comparison, run: wc.TileStats) -> dict:
+    """The p-value map and its overlay on the mean render at the image's resolution: key -> (file, PNG)."""
     tiles_rgb = wc.pvalue_rgb(result, "min")
     map_rgb = wc.upscale_tiles(tiles_rgb, result.tile, result.height, result.width, fill=wc.colormap.EXCLUDED_GREY)
-    wc.png.write_png(out / "pvalue_map.png", wc.png.to_uint8(map_rgb))
     base = wc.tonemap(run.mean_image) if run.mean_image is not None else np.full(map_rgb.shape, 0.5, np.float32)
     used = wc.upscale_tiles(result.used, result.tile, result.height, result.width, fill=False)
-    wc.png.write_png(out / "overlay.png", wc.png.to_uint8(wc.overlay(base, map_rgb, 0.6, used)))
-    return {"pvalue_map_png": "pvalue_map.png", "overlay_png": "overlay.png"}
+    overlay = wc.overlay(base, map_rgb, 0.6, used)
+    return {
+        "pvalue_map_png": ("pvalue_map.png", wc.png.png_bytes(wc.png.to_uint8(map_rgb))),
+        "overlay_png": ("overlay.png", wc.png.png_bytes(wc.png.to_uint8(overlay))),
+    }
 
 
 # -- the page ------------------------------------------------------------------------------------------------
@@ -92,7 +94,7 @@ def render_html(
         **_tile_data(result, report["grid"], significant),
         **_pictures(result, ref, test, previews),
     }
-    text = json.dumps(data, allow_nan=False, separators=(",", ":")).replace("</", "<\\/")
+    text = script_json(data)
     colour = {"biased": "#b00020", "inconclusive": "#a06000"}.get(report["verdict"], "#1b7f3b")
     replacements = {
         "{{TITLE}}": html.escape(f"Bias test: {report['verdict_text']}"),
@@ -109,6 +111,13 @@ def render_html(
     for key, value in replacements.items():
         head = head.replace(key, value)
     return head + text + tail  # the data last: it is most of the page and holds no placeholder
+
+
+def script_json(data) -> str:
+    """`data` as JSON safe inside a ``<script>`` element: every ``<``, ``>`` and ``&`` escaped, so that no text in it
+    (``</script>``, ``<!--<script>`` in a scene, layer or renderer name) can end or comment out the script."""
+    text = json.dumps(data, allow_nan=False, separators=(",", ":"))
+    return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
 
 
 def layers_section(summary: dict | None, comparisons: dict[str, wc.Comparison]) -> str:

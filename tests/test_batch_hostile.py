@@ -1,0 +1,153 @@
+"""Hostile inputs against the surfaces of check, suite, workers, layers, --tile and the report: each answered in
+one line, or by a verdict that says what was tested, never by a wrong answer with exit 0."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import welch_core as wc
+from batch import cli
+from batch.decide import suite as suites
+from batch.errors import BatchError
+from batch.jobs.lock import OutputLock
+from batch.jobs.protocol import Exit
+from batch.present.junit import junit_xml
+from batch.present.pipeline import present
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def save(path, sums, seeds, height, width, tile, info=None):
+    stats = wc.TileStats.from_sums(sums, seeds, height, width, tile, info)
+    wc.save_stats(path, stats)
+    return str(path)
+
+
+def strip_runs(tmp_path, brighter: float = 1.2):
+    """A 64x48 image in 16-px tiles whose bottom 16 rows are `brighter` on the test side: the strip a 32-px
+    tile does not reach whole."""
+    rng = np.random.default_rng(7)
+    mean = np.full((3, 4, 3), 100.0)
+    shifted = mean.copy()
+    shifted[2] *= brighter
+    ref = save(tmp_path / "ref.npz", rng.normal(mean, 2.0, (32, 3, 4, 3)), range(32), 48, 64, 16)
+    test = save(tmp_path / "test.npz", rng.normal(shifted, 2.0, (32, 3, 4, 3)), range(100, 132), 48, 64, 16)
+    return ref, test
+
+
+def test_a_tile_that_does_not_divide_the_image_leaves_no_strip_untested(tmp_path, capsys):
+    ref, test = strip_runs(tmp_path)
+    assert cli.main(["compare", ref, test, "--tile", "32", "--out", str(tmp_path / "r")]) == Exit.BIASED
+    report = json.loads((tmp_path / "r" / "report.json").read_text())
+    assert report["grid"] == {"width": 64, "height": 48, "tile": 32, "tiles_x": 2, "tiles_y": 2}
+    assert report["dropped_pixels"] == 0
+    top = report["top_tiles"][0]
+    assert (top["y"], top["height"]) == (32, 16)  # the partial row of tiles: 16 px high
+    capsys.readouterr()
+    code = cli.main(["compare", ref, test, "--tile", "32", "--tolerance", "5%", "--out", str(tmp_path / "e")])
+    assert code == Exit.BIASED and capsys.readouterr().out.startswith("verdict: biased")
+
+
+def test_a_file_of_an_earlier_version_says_which_pixels_it_leaves_untested(tmp_path):
+    rng = np.random.default_rng(8)
+    old = wc.TileStats.from_sums(rng.normal(100.0, 2.0, (8, 3, 4, 3)), range(8), 56, 64, 16, edges="dropped")
+    new = wc.TileStats.from_sums(rng.normal(100.0, 2.0, (8, 3, 4, 3)), range(8, 16), 56, 64, 16, edges="dropped")
+    summary = present(tmp_path, wc.compare(old, new), old, new)
+    assert summary["dropped_pixels"] == 64 * 8
+    assert any("512 pixels at the right and bottom edges are in no tile" in w for w in summary["warnings"])
+
+
+def test_text_in_names_can_not_end_or_comment_out_the_reports_script(tmp_path):
+    hostile = "<!--<script></script>&amp;"
+    rng = np.random.default_rng(9)
+    info = wc.RunInfo(scene=hostile, renderer=hostile, overrides=(f"objects['x'].name={hostile}",))
+    ref = wc.TileStats.from_sums(rng.normal(100, 1, (8, 2, 2, 3)), range(8), 32, 32, 16, info)
+    test = wc.TileStats.from_sums(rng.normal(100, 1, (8, 2, 2, 3)), range(8, 16), 32, 32, 16, info)
+    present(tmp_path, wc.compare(ref, test), ref, test)
+    page = (tmp_path / "report.html").read_text()
+    opening = '<script type="application/json" id="report-data">'
+    start = page.index(opening) + len(opening)
+    block = page[start : page.index("</script>", start)]
+    assert "<" not in block and ">" not in block and "&" not in block
+    assert json.loads(block)["summary"]["reference"]["info"]["scene"] == hostile
+
+
+def test_junit_is_well_formed_whatever_the_messages_hold():
+    case = suites.Case(name="c", scene="corner")
+    result = suites.CaseResult(case, "CPU", "failed", "biased", "Cycles said \x1b[31m\x00red\x07 and \ud800")
+    root = ET.fromstring(junit_xml("suite \x0b name", [result]))
+    failure = root.find("testsuite/testcase/failure")
+    assert "\ufffd" in failure.attrib["message"] and "\x00" not in failure.attrib["message"]
+
+
+def test_a_report_is_replaced_whole_or_not_at_all(tmp_path, monkeypatch):
+    rng = np.random.default_rng(10)
+    ref = wc.TileStats.from_sums(rng.normal(100, 1, (8, 2, 2, 3)), range(8), 32, 32, 16)
+    test = wc.TileStats.from_sums(rng.normal(100, 1, (8, 2, 2, 3)), range(8, 16), 32, 32, 16)
+    present(tmp_path, wc.compare(ref, test), ref, test)
+    before = {name: (tmp_path / name).read_bytes() for name in ("report.json", "report.html", "pvalues.exr")}
+    real_fsync, calls = os.fsync, []
+
+    def full_at_the_third_file(fd):  # two files of the new report are written, then the disk is full
+        calls.append(fd)
+        if len(calls) == 3:
+            raise OSError(28, "No space left on device")
+        return real_fsync(fd)
+
+    monkeypatch.setattr(os, "fsync", full_at_the_third_file)
+    with pytest.raises(OSError, match="No space left"):
+        present(tmp_path, wc.compare(ref, test.subset(range(4))), ref, test.subset(range(4)))
+    after = {name: (tmp_path / name).read_bytes() for name in before}
+    assert after == before and not list(tmp_path.glob(".welch-*.tmp"))
+    monkeypatch.undo()
+    (tmp_path / "report.json").unlink()
+    (tmp_path / "report.json").mkdir()
+    with pytest.raises(wc.WelchInputError, match=re.escape(f"{tmp_path / 'report.json'} is a folder, not a file")):
+        present(tmp_path, wc.compare(ref, test), ref, test)
+
+
+def test_a_lock_file_that_can_not_be_written_is_named_and_not_left(tmp_path, monkeypatch):
+    monkeypatch.setattr(os, "write", lambda fd, data: 0)  # a full disk: nothing is written
+    lock = OutputLock(tmp_path / "run.npz")
+    with pytest.raises(BatchError, match=re.escape(f"can't write the lock file {lock.lock_path}")):
+        with lock:
+            pass
+    assert not lock.lock_path.exists()
+
+
+def test_suite_names_with_a_trailing_newline_or_control_characters_are_refused(tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_text('[suite]\nname = "a\\u0007b"\n[[case]]\nname = "c\\n"\nscene = "corner"\n')
+    with pytest.raises(BatchError) as caught:
+        suites.load_suite(str(path))
+    message = str(caught.value)
+    assert "[suite] name must be a non-empty line of text" in message and "'name' must be letters" in message
+
+
+def test_every_case_skipped_is_not_a_pass():
+    case = suites.Case(name="c", scene="corner")
+    skipped = [suites.CaseResult(case, "OPTIX", "skipped", message="Cycles found no GPU")]
+    assert suites.exit_code(skipped) == Exit.USAGE
+    mixed = [*skipped, suites.CaseResult(case, "CPU", "passed", "no_evidence")]
+    assert suites.exit_code(mixed) == Exit.OK
+
+
+def test_a_blender_that_is_not_blender_is_refused_in_one_line(tmp_path):
+    fake = tmp_path / "blender"
+    fake.write_text("#!/bin/sh\necho 'hello, I render nothing'\nexit 0\n")
+    fake.chmod(0o755)
+    done = subprocess.run([sys.executable, "-m", "batch", "render", "--scene", "corner", "--seeds", "0:2", "--spp",
+                           "1", "--blender", str(fake), "--out", str(tmp_path / "x.npz")],
+                          capture_output=True, text=True, cwd=ROOT)  # fmt: skip
+    assert done.returncode == Exit.USAGE, done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1 and f"--blender {fake} is not Blender" in done.stderr
+    assert not (tmp_path / "x.npz").exists()
