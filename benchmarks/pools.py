@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 import welch_core as wc
+from batch.jobs.job import SCENE_REVISIONS
 
 from .cache import digest
 
@@ -48,7 +49,9 @@ class PoolSpec:
 
     @property
     def key(self) -> str:
-        return digest(asdict(self), metadata.version("bpy"), _scenes_digest())
+        revision = SCENE_REVISIONS.get(self.scene)  # a scene rebuilt on its own (its pools render again)
+        extra = () if revision is None else (f"revision {revision}",)
+        return digest(asdict(self), metadata.version("bpy"), _scenes_digest(), *extra)
 
 
 @functools.cache

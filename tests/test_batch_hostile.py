@@ -151,3 +151,47 @@ def test_a_blender_that_is_not_blender_is_refused_in_one_line(tmp_path):
     assert done.returncode == Exit.USAGE, done.stderr
     assert len(done.stderr.strip().splitlines()) == 1 and f"--blender {fake} is not Blender" in done.stderr
     assert not (tmp_path / "x.npz").exists()
+
+
+@pytest.mark.parametrize(
+    ("name", "message"),
+    [
+        ("key.light", "light group 'key.light': Blender takes it as 'key_light'"),
+        ("g" * 80, "instead ('Object.lightgroup' holds at most 63 characters, or changes some)"),
+    ],
+)
+def test_a_light_group_blender_would_rename_is_refused(tmp_path, name, message):
+    done = subprocess.run([sys.executable, "-m", "batch", "render", "--scene", "corner", "--resolution", "16", "16",
+                           "--tile", "8", "--seeds", "0:2", "--spp", "1", "--lobes", "lightgroups", "--set",
+                           f'objects["Light"].lightgroup={name}', "--out", str(tmp_path / "x.npz")],
+                          capture_output=True, text=True, cwd=ROOT)  # fmt: skip
+    assert done.returncode == Exit.USAGE and message in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1
+
+
+def suite_with_two_references(tmp_path, swap: bool):
+    """A suite of two cases on synthetic references (no rendering happens before the reference check)."""
+    text = ('[[case]]\nname = "a"\nscene = "corner"\nresolution = [32, 32]\n'
+            '[[case]]\nname = "b"\nscene = "glossy"\nresolution = [32, 32]\n')  # fmt: skip
+    (tmp_path / "s.toml").write_text(text)
+    refs = tmp_path / "refs"
+    refs.mkdir()
+    rng = np.random.default_rng(11)
+    for case, scene in (("a", "corner"), ("b", "glossy")):
+        info = wc.RunInfo(scene=scene, scene_id=f"builtin:{scene}:1")
+        target = refs / f"{'b' if swap and case == 'a' else 'a' if swap else case}.npz"
+        save(target, rng.normal(100, 1, (8, 2, 2, 3)), range(8), 32, 32, 16, info)
+    return suites.load_suite(str(tmp_path / "s.toml")), refs
+
+
+def test_a_reference_of_another_case_is_named_and_not_used(tmp_path):
+    suite, refs = suite_with_two_references(tmp_path, swap=True)
+    outcomes = suites.run_suite(suite, list(suite.cases), refs, tmp_path / "out", lambda n: None, say=lambda _: None)
+    assert [o.status for o in outcomes] == ["error", "error"]
+    assert "not this case's reference: it should be of the built-in scene 'corner', it holds 'glossy'" in (
+        outcomes[0].message
+    )
+    assert not (tmp_path / "out" / "a").exists()  # nothing rendered
+    (refs / "a.npz").write_bytes((refs / "a.npz").read_bytes()[:100])  # truncated: that case alone fails, named
+    outcomes = suites.run_suite(suite, list(suite.cases), refs, tmp_path / "out2", lambda n: None, say=lambda _: 0)
+    assert outcomes[0].status == "error" and str(refs / "a.npz") in outcomes[0].message

@@ -20,7 +20,7 @@ import numpy as np
 
 from .._siblings import welch_core as wc
 from ..errors import BatchError
-from ..jobs.job import DEFAULT_SAMPLING_PATTERNS, NO_GPU_MESSAGE
+from ..jobs.job import DEFAULT_SAMPLING_PATTERNS, NO_GPU_MESSAGE, builtin_scene_id
 from ..jobs.lobes import COMPONENTS, LIGHTGROUP_PREFIX, PASS_PROPERTIES, layers_from_channels
 from ..jobs.lock import process_alive
 from ..jobs.options import GPU_BACKENDS
@@ -257,7 +257,14 @@ def add_named_lightgroups(scene: bpy.types.Scene) -> list[dict]:
         named.add(scene.world.lightgroup)
     existing = {group.name for group in layer.lightgroups}
     for name in sorted(named - existing):
-        layer.lightgroups.add(name=name)
+        group = layer.lightgroups.add(name=name)
+        if group.name != name:  # Blender renames what a pass name can't hold: the lights' group would be empty
+            layer.lightgroups.remove(group)
+            raise RenderSetupError(
+                f"light group {name!r}: Blender takes it as {group.name!r} (a light group's name is a pass name: "
+                "letters, digits and '_', at most 63 characters), so its lights would render into no layer; "
+                "rename the group"
+            )
         changes.append({"path": f"view_layers[{json.dumps(layer.name)}].lightgroups", "old": None, "new": name})
     return changes
 
@@ -509,7 +516,7 @@ def scene_id(builtin: str | None) -> str:
     """What fixes the scene's content: ``builtin:<name>:<builder version>``, or ``sha256:<hex>`` of the .blend
     file Blender has open (so a changed file is another configuration, whatever its name)."""
     if builtin is not None:
-        return f"builtin:{builtin}:{BUILDER_VERSION}"
+        return builtin_scene_id(builtin, BUILDER_VERSION)
     digest = hashlib.sha256()
     with open(bpy.data.filepath, "rb") as f:
         for chunk in iter(lambda: f.read(1 << 20), b""):

@@ -23,7 +23,8 @@ from ..errors import BatchError
 WALL_COLOR_PATH = 'materials["Walls"].node_tree.nodes["Diffuse BSDF"].inputs["Color"].default_value'
 LIGHT_ENERGY_PATH = 'lights["Light"].energy'
 
-#: Part of a built-in scene's identity in a run record: raise it whenever a builder changes what it builds.
+#: Part of a built-in scene's identity in a run record: raise it whenever the builders change what they build
+#: (one scene's change: its revision in `batch.jobs.job.SCENE_REVISIONS`, so the others keep their identity).
 BUILDER_VERSION = 1
 
 WALL_GREY = 0.2  # the paper's corner scene: diffuse grey 0.2 walls
@@ -322,14 +323,15 @@ def _volume_scene(name: str, noise: bool) -> bpy.types.Scene:
 
 
 def _many_lights_scene() -> bpy.types.Scene:
-    """The corner lit by a 4x4 grid of small point lights instead of one area light (the light tree picks one)."""
+    """The corner lit by a 4x4 grid of small point lights instead of one area light (the light tree picks one),
+    every one inside the box, in front of the back wall (y = BOX)."""
     scene = _corner("many_lights")
     bpy.data.objects.remove(scene.objects["Light"])
     for i in range(16):
         light = bpy.data.lights.new(f"Small{i:02d}", "POINT")
         light.energy = LIGHT_ENERGY / 16 * (1 + i % 3)  # unequal powers: the tree's importance has work to do
         light.shadow_soft_size = 0.02
-        position = (0.2 + 0.2 * (i % 4), 0.4 + 0.3 * (i // 4), 0.85)
+        position = (0.2 + 0.2 * (i % 4), 0.25 + 0.2 * (i // 4), 0.85)
         link_object(scene, f"Small{i:02d}", light).location = tuple(p * BOX for p in position)
     return scene
 

@@ -33,7 +33,7 @@ from ..decide.check import DEFAULT_MAX_PASSES
 from ..errors import BatchError
 from ..jobs import job as jobs
 from ..jobs.options import DEVICES, OPTIONS, add_options, argparse_type
-from ..jobs.protocol import Exit, verdict_exit
+from ..jobs.protocol import Exit, SigtermAsInterrupt, verdict_exit
 
 DEFAULT_ALPHA = 0.01
 
@@ -333,7 +333,8 @@ def main(argv: list[str] | None = None) -> int:
             stream.reconfigure(errors="backslashreplace")
     args = build_parser().parse_args(argv)
     try:
-        return COMMANDS[args.command](args)
+        with SigtermAsInterrupt():
+            return COMMANDS[args.command](args)
     except KeyboardInterrupt:
         print("interrupted: the statistics written so far are kept (continue with --resume)", file=sys.stderr)
         return Exit.INTERRUPTED

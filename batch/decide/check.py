@@ -16,6 +16,7 @@ import contextlib
 import dataclasses
 import json
 import math
+import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -113,10 +114,10 @@ class Check:
         return {
             "format": "welch-bias-check",
             "version": STATE_VERSION,
-            "plan": dataclasses.asdict(self.plan),
+            "plan": dataclasses.asdict(self.plan) if self.plan is not None else None,
             "max_seconds": self.job.max_seconds,
-            "reference": self.job.reference.replace(resume=False).to_argv(),
-            "test": self.job.test.replace(resume=False).to_argv(),
+            "reference": _side_record(self.job.reference),
+            "test": _side_record(self.job.test),
             "render_seconds": self.render_seconds,
             "looks": self.looks,
         }
@@ -136,13 +137,16 @@ class Check:
         if not isinstance(state, dict) or state.get("format") != "welch-bias-check":
             raise BatchError(f"{path} is not a check state file")
         for side in (self.reference, self.test):
-            if state.get(side.name) != side.job.replace(resume=False).to_argv():
+            if state.get(side.name) != _side_record(side.job):
                 raise BatchError(f"can't resume {self.job.out}: the {side.name} side was started with other arguments")
-        try:
-            stored = wc.SequentialPlan(**state["plan"])
-        except (KeyError, TypeError, wc.WelchInputError) as exc:
-            raise BatchError(f"{path} is not a readable check state ({exc})") from None
-        if self.job.plan(stored.max_passes) != stored or state.get("max_seconds") != self.job.max_seconds:
+        stored = None
+        if state.get("plan") is not None:  # None: stopped before a time budget became a pass budget
+            try:
+                stored = wc.SequentialPlan(**state["plan"])
+            except (KeyError, TypeError, wc.WelchInputError) as exc:
+                raise BatchError(f"{path} is not a readable check state ({exc})") from None
+        planned = self.job.plan(stored.max_passes) if stored is not None else None
+        if planned != stored or state.get("max_seconds") != self.job.max_seconds:
             raise BatchError(f"can't resume {self.job.out}: it was started with another budget, alpha or tolerance")
         self.plan = stored
         self.looks = list(state.get("looks", []))
@@ -199,13 +203,13 @@ class Check:
     def run(self) -> tuple[wc.Look, wc.TileStats, wc.TileStats]:
         if self.job.resume:
             self._load_state()
+        self._save_state()  # before anything renders: a check stopped at once can still be resumed
         self._start()
         try:
             result = self._loop()
         except BaseException:
             self._stop()
-            if self.plan is not None:
-                self._save_state()
+            self._save_state()
             raise
         self._finish()
         self._save_state()
@@ -264,6 +268,12 @@ class Check:
         return run if run.n <= n else run.subset(range(n))
 
 
+def _side_record(job: RenderJob) -> list[str]:
+    """What must stay the same for a side to be resumed: its job's arguments, its statistics file by its name in
+    the check's folder (the folder may be given another way, or moved)."""
+    return job.replace(resume=False, out=Path(job.out).name).to_argv()
+
+
 def _look_record(look: wc.Look, seconds: float) -> dict:
     outcome = look.outcome
     record = {
@@ -311,6 +321,11 @@ def run_check(job: CheckJob, progress, where: Cluster | None = None) -> tuple[wc
 MAX_SEEDS_FOR_SECONDS = 100_000
 
 
+def _absolute(path: str | None) -> str | None:
+    """A scene file's path as its sides record it: absolute, so a check resumed from another folder is the same."""
+    return None if path is None else os.path.abspath(path)
+
+
 def check_job_from_args(args) -> CheckJob:
     """The check the command line describes, refused in one line where it can't work, before anything renders."""
     if args.max_passes is not None and args.max_seconds is not None:
@@ -344,7 +359,7 @@ def check_job_from_args(args) -> CheckJob:
     reference = RenderJob(
         out=str(out / "reference.npz"),
         seeds=tuple(ref_seeds),
-        blend=args.blend,
+        blend=_absolute(args.blend),
         scene=args.scene,
         blend_scene=args.blend_scene,
         blender=args.blender,
@@ -353,7 +368,7 @@ def check_job_from_args(args) -> CheckJob:
     test = RenderJob(
         out=str(out / "test.npz"),
         seeds=tuple(test_seeds),
-        blend=args.test_blend or args.blend,
+        blend=_absolute(args.test_blend or args.blend),
         scene=None if args.test_blend else args.scene,
         blend_scene=args.test_blend_scene or (None if args.test_blend else args.blend_scene),
         blender=args.test_blender or args.blender,

@@ -52,7 +52,7 @@ from .._siblings import welch_core as wc
 from ..errors import BatchError
 from ..jobs import options
 from ..jobs.distributed import cluster as side_cluster
-from ..jobs.job import BUILTIN_SCENES, NO_GPU_MESSAGE, RenderJob
+from ..jobs.job import BUILTIN_SCENES, NO_GPU_MESSAGE, RenderJob, builtin_scene_id
 from ..jobs.protocol import Exit
 from .check import CheckJob, run_check
 
@@ -418,7 +418,13 @@ def _run_case(
     suite, case, device, refs, out, progress_factory, blender, overrides, resume, seed_offset, where
 ) -> CaseResult:
     folder = out / case.name / device
-    reference = wc.load_stats(reference_path(refs, case), pixels=False)
+    try:
+        reference = wc.load_stats(reference_path(refs, case), pixels=False)
+        problem = reference_problem(case, reference, refs)
+    except wc.WelchInputError as exc:  # truncated, foreign: this case can't run, the others can
+        problem = str(exc)
+    if problem:
+        return CaseResult(case, device, "error", message=f"the reference {reference_path(refs, case)}: {problem}")
     first = max(reference.seeds) + 1 + seed_offset
     budget = case.passes if case.seconds is None else None
     count = budget or 100_000
@@ -448,6 +454,48 @@ def _run_case(
     return CaseResult(case, device, status_of(case, verdict), verdict.label, message,
                    seconds=check["looks"][-1]["seconds"] if check["looks"] else 0.0, passes=check["passes"],
                    folder=str(folder), summary=summary)  # fmt: skip
+
+
+def reference_problem(case: Case, reference: wc.TileStats, refs: Path) -> str | None:
+    """Why `reference` is not this case's (another case's file copied or swapped in, a scene or a .blend that
+    changed since it was blessed), or None. A reference is known by what rendered it: the scene and its content,
+    the samples per pass, the overrides, the image and tile size, and the case named in its provenance file."""
+    info, expected = reference.info, []
+    if case.scene is not None and not info.scene_id.startswith(f"builtin:{case.scene}:"):
+        expected.append(f"the built-in scene {case.scene!r}, it holds {info.scene or info.scene_id!r}")
+    elif case.scene is not None and info.scene_id != builtin_scene_id(case.scene):
+        expected.append(f"the built-in scene {case.scene!r} as it is built now ({builtin_scene_id(case.scene)}), it "
+                        f"holds {info.scene_id}")  # fmt: skip
+    if case.blend is not None and info.scene_id != f"sha256:{_sha256(case.blend)}":
+        expected.append(f"{case.blend} as it is now (the file changed since, or it is another scene's)")
+    if info.spp != case.spp:
+        expected.append(f"{case.spp} samples per pass, it holds {info.spp}")
+    if tuple(info.overrides) != tuple(case.overrides):
+        expected.append(f"the overrides {list(case.overrides)}, it holds {list(info.overrides)}")
+    if reference.tile != case.tile or case.resolution and (reference.width, reference.height) != case.resolution:
+        expected.append(f"{case.tile}-px tiles{' of ' + 'x'.join(map(str, case.resolution)) if case.resolution else ''}"
+                        f", it holds {reference.tile}-px tiles of {reference.width}x{reference.height}")  # fmt: skip
+    provenance = refs / f"{case.name}.json"
+    if provenance.exists():
+        try:
+            named = json.loads(provenance.read_text()).get("case")
+        except (OSError, ValueError):
+            named = None
+        if named not in (None, case.name):
+            expected.append(f"case {case.name!r}, its provenance names case {named!r}")
+    if not expected:
+        return None
+    return "not this case's reference: it should be of " + "; of ".join(expected) + " (run `suite bless --force`)"
+
+
+def _sha256(path: str) -> str:
+    import hashlib
+
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            digest.update(chunk)
+    return digest.hexdigest()
 
 
 # -- outputs ------------------------------------------------------------------------------------------------------

@@ -612,7 +612,7 @@ def _resumed(job: RenderJob) -> wc.TileStats | None:
 
 
 def _render(job, todo, stats, progress, cluster, chunk, resources) -> wc.TileStats | None:
-    with PassPool(job, cluster, resources) as pool, _SigtermAsInterrupt():
+    with PassPool(job, cluster, resources) as pool:
         size = chunk or default_chunk(len(todo), pool.parallelism() or 1)
         for start in range(0, len(todo), size):
             pool.submit(todo[start : start + size])
@@ -666,29 +666,6 @@ def save_in_seed_order(job: RenderJob, stats: wc.TileStats) -> wc.TileStats:
         )
     wc.save_stats(job.out, stats)
     return stats
-
-
-class _SigtermAsInterrupt:
-    """SIGTERM (a job scheduler's or the add-on's cancel) stops the client as Ctrl-C does: the handler raises
-    KeyboardInterrupt in the main thread, which cancels the outstanding chunks and saves what arrived. (A render
-    process only notes the signal, `batch.run.StopRequest`: there, raising could land inside Blender.)"""
-
-    def __enter__(self) -> _SigtermAsInterrupt:
-        self._old = None
-        try:
-            self._old = signal.signal(signal.SIGTERM, self._raise)
-        except ValueError:  # not the main thread: leave signals alone
-            pass
-        return self
-
-    @staticmethod
-    def _raise(_signum, _frame) -> None:
-        raise KeyboardInterrupt
-
-    def __exit__(self, *_exc) -> bool:
-        if self._old is not None:
-            signal.signal(signal.SIGTERM, self._old)
-        return False
 
 
 # -- clusters of a job scheduler ------------------------------------------------------------------------------

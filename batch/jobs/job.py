@@ -26,6 +26,16 @@ BUILTIN_SCENES = (
     "environment", "volume", "volume_noise", "sss", "depth_of_field", "motion_blur", "hair", "textured",
 )  # fmt: skip
 
+#: Scenes rebuilt since the builders' version (`batch.blender.scenes.BUILDER_VERSION`): their revision is part of
+#: their identity, so a reference of the scene as it was is not taken for one of the scene as it is.
+SCENE_REVISIONS = {"many_lights": 2}  # 2: its back rows of lights were on and behind the back wall
+
+
+def builtin_scene_id(name: str, builder_version: int = 1) -> str:
+    """What fixes a built-in scene's content in a run record: ``builtin:<name>:<revision>``."""
+    return f"builtin:{name}:{SCENE_REVISIONS.get(name, builder_version)}"
+
+
 #: How a job that asked for a GPU this machine lacks fails (a suite skips such a case with this reason).
 NO_GPU_MESSAGE = "Cycles found no GPU"
 

@@ -228,6 +228,9 @@ def apply_overrides(scene, overrides: Iterable[Override | str]) -> list[dict]:
             reason = str(error).strip().splitlines()[-1]
             raise _error(target.override.text, f"Blender refused the value: {reason}") from None
         new = jsonable(getattr(target.struct, target.name))
+        if isinstance(target.value, str) and new != target.value:  # truncated or renamed: not what was asked
+            raise _error(target.override.text, f"Blender stored {new!r} instead ('{target.label}' holds at most "
+                                               f"{len(new)} characters, or changes some)")  # fmt: skip
         changes.append({"override": target.override.text, "path": target.override.path, "old": old, "new": new})
     if targets:
         # Python-defined settings (scene.cycles.*) do not tag the depsgraph by themselves.

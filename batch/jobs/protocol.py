@@ -221,3 +221,27 @@ def interrupted(code: int | None) -> bool:
     ended it before it could (Popen's negative codes, a shell's 128 + signal)."""
     signals = (signal.SIGINT, signal.SIGTERM)
     return code is not None and (code == Exit.INTERRUPTED or -code in signals or code - 128 in signals)
+
+
+class SigtermAsInterrupt:
+    """While active, SIGTERM (a job scheduler's or the add-on's cancel) stops this process as Ctrl-C does: the
+    handler raises KeyboardInterrupt in the main thread, so a check saves its state and its sides, a cluster's
+    outstanding chunks are cancelled, and the process exits `Exit.INTERRUPTED` saying so. (A render process
+    only notes the signal, `batch.blender.run.StopRequest`: there, raising could land inside Blender.)"""
+
+    def __enter__(self) -> SigtermAsInterrupt:
+        self._old = None
+        try:
+            self._old = signal.signal(signal.SIGTERM, self._raise)
+        except ValueError:  # not the main thread: leave signals alone
+            pass
+        return self
+
+    @staticmethod
+    def _raise(_signum, _frame) -> None:
+        raise KeyboardInterrupt
+
+    def __exit__(self, *_exc) -> bool:
+        if self._old is not None:
+            signal.signal(signal.SIGTERM, self._old)
+        return False
