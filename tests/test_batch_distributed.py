@@ -474,3 +474,22 @@ def test_suite_run_on_workers(tmp_path):
     done = run_cli("suite", "run", suite, "--refs", tmp_path / "refs", "--out", tmp_path / "out", "--workers", "2",
                    "--set", "cycles.film_exposure=1.2", check=1)  # fmt: skip
     assert "failed: walls [CPU], mirror [CPU]" in done.stdout
+
+
+def test_a_port_that_accepts_and_never_answers_is_not_a_scheduler(tmp_path, monkeypatch):
+    """A TCP port that accepts connections and never speaks (not a Dask scheduler) made the connect wait past its
+    timeout, and Ctrl-C could not end it; now it is refused in one line after the handshake's deadline."""
+    import socket
+
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(8)
+    accepted = []
+    threading.Thread(target=lambda: [accepted.append(server.accept()) for _ in range(8)], daemon=True).start()
+    monkeypatch.setattr(dist, "HANDSHAKE_SECONDS", 2.0)
+    address = f"tcp://127.0.0.1:{server.getsockname()[1]}"
+    started = time.monotonic()
+    with pytest.raises(BatchError, match=re.escape(f"the Dask scheduler at {address} accepts connections but does")):
+        dist.PassPool(make_job(tmp_path / "x.npz"), dist.Cluster(address))
+    assert time.monotonic() - started < 10
+    server.close()

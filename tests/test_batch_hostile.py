@@ -8,6 +8,7 @@ import os
 import re
 import subprocess
 import sys
+import time
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -151,6 +152,28 @@ def test_a_blender_that_is_not_blender_is_refused_in_one_line(tmp_path):
     assert done.returncode == Exit.USAGE, done.stderr
     assert len(done.stderr.strip().splitlines()) == 1 and f"--blender {fake} is not Blender" in done.stderr
     assert not (tmp_path / "x.npz").exists()
+
+
+def test_a_blender_that_never_starts_rendering_is_stopped_with_what_it_started(tmp_path):
+    """A Blender that answers --version and then hangs (a licence prompt, a stuck network mount) is given up on
+    after WELCH_START_TIMEOUT seconds, in one line, and its whole process group is gone: nothing it started is
+    left running or holding the tool's pipes."""
+    marker = tmp_path / "child.pid"
+    fake = tmp_path / "blender"
+    fake.write_text("#!/bin/sh\n"
+                    "if [ \"$1\" = --version ]; then echo 'Blender 4.5.4 LTS'; exit 0; fi\n"
+                    f"sleep 600 & echo $! > {marker}\nwait\n")  # fmt: skip
+    fake.chmod(0o755)
+    env = {**os.environ, "WELCH_START_TIMEOUT": "2"}
+    done = subprocess.run([sys.executable, "-m", "batch", "render", "--scene", "corner", "--seeds", "0:2", "--spp",
+                           "1", "--blender", str(fake), "--out", str(tmp_path / "x.npz")],
+                          capture_output=True, text=True, cwd=ROOT, env=env, timeout=60)  # fmt: skip
+    assert done.returncode == Exit.USAGE, done.stderr
+    assert done.stderr.strip() == (f"error: render side: {fake} did not start rendering within 2 s "
+                                   "(WELCH_START_TIMEOUT sets the limit)")  # fmt: skip
+    stat = Path(f"/proc/{int(marker.read_text())}/stat")
+    time.sleep(0.5)  # the kill is sent; let it land
+    assert not stat.exists() or stat.read_text().rsplit(")", 1)[1].split()[0] == "Z"  # gone, or dead unreaped
 
 
 @pytest.mark.parametrize(

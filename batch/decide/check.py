@@ -171,8 +171,10 @@ class Check:
             side.finish()
 
     def _render_to(self, passes: int) -> None:
-        """Both sides up to `passes` passes (at once: the sides share the machine, the chunk takes the longer)."""
-        start = time.perf_counter()
+        """Both sides up to `passes` passes (at once: the sides share the machine, the chunk takes the longer).
+        The render seconds are the passes' own (what `--max-seconds` counts): a render process's start-up, loading
+        the scene once, is not a pass's."""
+        before = sum(side.render_seconds for side in self.rendered)
         for side in self.rendered:
             side.request(passes)
         waiting = list(self.rendered)
@@ -180,7 +182,7 @@ class Check:
             waiting = [side for side in waiting if not side.poll()]
             if waiting:
                 time.sleep(0.005)
-        self.render_seconds += time.perf_counter() - start
+        self.render_seconds += sum(side.render_seconds for side in self.rendered) - before
 
     def _fraction(self, passes: int) -> float:
         fixed = self.reference.passes if self.job.fixed_reference else None
@@ -204,8 +206,8 @@ class Check:
         if self.job.resume:
             self._load_state()
         self._save_state()  # before anything renders: a check stopped at once can still be resumed
-        self._start()
         try:
+            self._start()
             result = self._loop()
         except BaseException:
             self._stop()

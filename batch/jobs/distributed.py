@@ -30,7 +30,6 @@ import os
 import shutil
 import signal
 import socket
-import subprocess
 import tempfile
 import threading
 import time
@@ -63,6 +62,7 @@ RETRIES = 1
 #: handshake (a port that accepts connections and never answers fails after the second).
 CONNECT_SECONDS = 5.0
 CONNECT_TIMEOUT = "20s"
+HANDSHAKE_SECONDS = 25.0
 
 #: Worker-local folders of the serving render processes (chunk files), named by the worker's PID so a later
 #: worker can remove those of dead ones.
@@ -200,13 +200,9 @@ class _Server:
         """End the process and remove its folder. With `kill` it gets SIGTERM (it stops after its current pass);
         else its requests end (it exits once idle). Killed if it has not ended after `wait` seconds."""
         if kill and self.alive():
-            self.process.popen.send_signal(signal.SIGTERM)
+            self.process.signal(signal.SIGTERM)
         self.process.close_requests()
-        try:
-            self.process.popen.wait(wait)
-        except subprocess.TimeoutExpired:
-            self.process.popen.kill()
-            self.process.popen.wait()
+        self.process.end(wait)
         shutil.rmtree(self.folder, ignore_errors=True)
 
 
@@ -309,6 +305,29 @@ def local_threads(workers: int) -> int:
     return max(1, cores // workers)
 
 
+def _client(distributed, address: str):
+    """A Dask client of the scheduler at `address`, or BatchError in one line. Made in a thread with a deadline:
+    a port that accepts connections and never answers made Dask's own connect wait past its timeout, and Ctrl-C
+    could not end it."""
+    made: dict = {}
+
+    def connect() -> None:
+        try:
+            made["client"] = distributed.Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
+        except Exception as exc:  # reported in the caller's thread
+            made["error"] = exc
+
+    thread = threading.Thread(target=connect, daemon=True, name="dask-connect")
+    thread.start()
+    thread.join(HANDSHAKE_SECONDS)
+    if "client" in made:
+        return made["client"]
+    if thread.is_alive():
+        raise BatchError(f"the Dask scheduler at {address} accepts connections but does not answer (waited "
+                         f"{HANDSHAKE_SECONDS:.0f} s): is it a Dask scheduler of the same version?")  # fmt: skip
+    raise BatchError(f"can't reach the Dask scheduler at {address}: {made.get('error')}")
+
+
 def check_scheduler(address: str) -> str:
     """`address` of a Dask scheduler that answers, or BatchError in one line: a scheme Dask does not speak
     (``http://``, the dashboard's), no port, or nothing listening there (within `CONNECT_SECONDS`)."""
@@ -384,10 +403,7 @@ class PassPool:
         self.token = uuid.uuid4().hex[:12]
         self.resources = resources
         self.threads = cluster.threads
-        try:
-            self.client = distributed.Client(cluster.address, timeout=CONNECT_TIMEOUT, set_as_default=False)
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise BatchError(f"can't reach the Dask scheduler at {cluster.address}: {exc}") from None
+        self.client = _client(distributed, cluster.address)
         self._as_completed = distributed.as_completed(loop=self.client.loop)
         self._pending: dict = {}  # future -> its seeds
         self._submitted: set[int] = set()
@@ -554,6 +570,7 @@ class ClusterSide(Side):
         stats = wc.load_stats(self.job.out) if os.path.exists(self.job.out) else None
         for result in self.pool:
             stats = accumulate(stats, result, self.job)
+            self.render_seconds += sum(s for s in result.seconds if math.isfinite(s))
             for message in result.warnings:
                 self._warn(f"{result.worker}: {message}")
             if self.progress is not None:

@@ -122,6 +122,9 @@ class JobProcess:
                 encoding="utf-8",
                 errors="replace",
                 bufsize=1,
+                # Its own process group: a wrapper script's children (the real Blender) get our signals too, and
+                # none is left holding the output pipes once it is stopped.
+                start_new_session=True,
             )
         except OSError as exc:
             raise BatchError(f"can't start {command.argv[0]}: {exc.strerror or exc}") from None
@@ -200,12 +203,27 @@ class JobProcess:
         job waiting for its next chunk just sees its requests end."""
         self.close_requests()
         if self.popen.poll() is None:
-            self.popen.send_signal(signal.SIGTERM)
-            try:
-                self.popen.wait(timeout)
-            except subprocess.TimeoutExpired:
-                self.popen.kill()
-        self.wait(timeout)
+            self.signal(signal.SIGTERM)
+        self.end(timeout)
+
+    def end(self, timeout: float) -> int:
+        """Wait up to `timeout` seconds for the job to exit, then kill what is left of its process group."""
+        try:
+            code = self.popen.wait(timeout)
+        except subprocess.TimeoutExpired:
+            code = None
+        self.signal(signal.SIGKILL)  # the job, if it is still there, and anything it started and left behind
+        code = self.popen.wait() if code is None else code
+        for thread in self._threads:
+            thread.join(timeout)
+        return code
+
+    def signal(self, sig: int) -> None:
+        """Send `sig` to the job's process group (its own children included)."""
+        try:
+            os.killpg(self.popen.pid, sig)
+        except (ProcessLookupError, PermissionError):
+            pass  # all of it has ended
 
     def error_message(self) -> str:
         """The most telling line about a failure: the job's error event, else stderr's last line, else stdout's."""

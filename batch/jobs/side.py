@@ -28,6 +28,10 @@ from .protocol import ChunkRequest, Exit
 #: Seconds to wait for a render process to end once its requests are closed.
 FINISH_WAIT = 60.0
 
+#: Seconds a render process may take to start (load Blender and the scene) before it is taken for hung; the
+#: environment variable WELCH_START_TIMEOUT overrides it (a production scene on slow storage may need more).
+START_TIMEOUT = float(os.environ.get("WELCH_START_TIMEOUT", "900"))
+
 
 class Side:
     """One render side of a run: `start`, then `request` passes (up to a count) and `wait` (or `poll`) until they
@@ -45,6 +49,8 @@ class Side:
         self.progress = progress
         self.warn = warn
         self.passes = 0  # in the statistics file
+        self._started_at, self._alive = time.monotonic(), False  # since when, and whether it has said anything
+        self.render_seconds = 0.0  # the seconds of the passes rendered here (their own, start-up not counted)
         self.process: JobProcess | None = None
         self._asked = 0  # passes the current request waits for (0: none outstanding)
 
@@ -58,6 +64,7 @@ class Side:
         if Path(self.job.out).exists():
             self.passes = wc.load_stats(self.job.out, pixels=False).n
         self.process = JobProcess(job_command(self.job, base_env=self.env, serve=True), requests=True)
+        self._started_at, self._alive = time.monotonic(), False
 
     def stop(self) -> None:
         """End the side now: its process finishes its current pass and saves (or is killed)."""
@@ -97,6 +104,11 @@ class Side:
         if code is not None:
             self._relay()
             self._failed(code)
+        if not self._alive and time.monotonic() - self._started_at > START_TIMEOUT:
+            self.stop()
+            who = self.job.blender or "the render process"
+            raise BatchError(f"{self.name} side: {who} did not start rendering within {START_TIMEOUT:.0f} s "
+                             "(WELCH_START_TIMEOUT sets the limit)")  # fmt: skip
         return False
 
     def wait(self) -> None:
@@ -128,14 +140,18 @@ class Side:
         """Show the side's events; the pass count of its last `Saved` event, if one arrived."""
         saved = None
         for event in self.process.drain():
+            self._alive = True
             if isinstance(event, protocol.Saved):
                 saved = event.passes if event.out == self.job.out else saved
             elif isinstance(event, protocol.Warned):
                 self._warn(event.message)
             elif isinstance(event, protocol.Failed):
                 continue  # reported once, by whoever handles the exit
-            elif self.progress is not None:
-                self.progress.emit(event)
+            else:
+                if isinstance(event, protocol.PassDone):
+                    self.render_seconds += event.seconds
+                if self.progress is not None:
+                    self.progress.emit(event)
         return saved
 
     def _warn(self, message: str) -> None:
