@@ -6,8 +6,9 @@
 
 Charts: 1 detection rate against render time, 2 p-value methods, 3 stability on unbiased pairs, 4 cost, 5 render
 seconds to a decision (`check` against the best fixed design), 6 A/A runs of `check`, 7 multi-scale tiles against
-fixed tile sizes. ``--quick`` alone runs charts 1-4 (tests/test_benchmarks.py counts their four PNGs);
-``--quick --charts 5 6 7`` checks the others (tests/test_benchmarks_decision.py).
+fixed tile sizes, 8 passes to `equivalent` at each scale against a known-variance oracle. ``--quick`` alone runs
+charts 1-4 (tests/test_benchmarks.py counts their four PNGs);
+``--quick --charts 5 6 7 8`` checks the others (tests/test_benchmarks_decision.py).
 """
 
 from __future__ import annotations
@@ -20,11 +21,12 @@ import time
 from importlib import metadata
 from pathlib import Path
 
-from . import aa, cost, decision, detection, plan, pvalues, readme, scales, stability
+from . import aa, cost, decision, detection, equivalence, plan, pvalues, readme, scales, stability
 from .cache import DEFAULT_DIR, REPO, welch_digest
 from .pools import RENDERED, say
 
-CHARTS = {"1": detection, "2": pvalues, "3": stability, "4": cost, "5": decision, "6": aa, "7": scales}
+CHARTS = {"1": detection, "2": pvalues, "3": stability, "4": cost, "5": decision, "6": aa, "7": scales,
+          "8": equivalence}  # fmt: skip
 #: What ``--quick`` runs without ``--charts``.
 QUICK_CHARTS = ("1", "2", "3", "4")
 

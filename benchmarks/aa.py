@@ -174,9 +174,9 @@ def chart6_findings(c6: dict) -> list[str]:
             f"Wilson [{_pct(c['biased_lo'])}, {_pct(c['biased_hi'])}], α = {_pct(ALPHA, 0)}); `inconclusive` "
             f"{_pct(c['inconclusive_share'])}. Nobody chose N: the budget is only a ceiling."
             + (
-                f" The tightest bound at the stop (median ±{_pct(c['equivalent_median_bound'], 2)}) was at the "
+                f" The bias ruled out at the stop (median ±{_pct(c['equivalent_median_bound'], 2)}) held at the "
                 f"{c['equivalent_tile']}² scale in {_pct(c['equivalent_tile_share'], 0)} of those runs "
-                "(`equivalent` holds once some scale bounds every one of its tiles within the tolerance)."
+                "(`equivalent` holds once every tile of the finest scale is bounded within the tolerance)."
                 if c.get("equivalent_tile")
                 else ""
             )

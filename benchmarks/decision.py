@@ -347,9 +347,9 @@ def chart5_findings(c5: dict) -> list[str]:
         if g["equivalent_share"] >= 0.05:
             change = changes.get(g["case"])
             size = f" (mean change {_pct(change, 2)})" if change is not None else ""
-            why.append(f"{_pct(g['equivalent_share'], 0)} of the runs end `equivalent`: the bias{size} is inside the "
-                       "1 % tolerance at some scale, the answer the defaults ask for; with the equivalence verdict off "
-                       f"the median is {_x(noeq['biased_median_ratio'])}")  # fmt: skip
+            why.append(f"{_pct(g['equivalent_share'], 0)} of the runs end `equivalent`: the bias{size} is inside "
+                       "the 1 % tolerance in every 16² tile, the answer the defaults ask for; with the equivalence "
+                       f"verdict off the median is {_x(noeq['biased_median_ratio'])}")  # fmt: skip
         passes = g["median_s"] / r["seconds_per_pass_both"] if g["median_s"] else None
         fixed_n = r["best_fixed_passes"]
         bound = next(

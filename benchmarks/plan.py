@@ -68,6 +68,8 @@ class Budget:
     scale_trials: int  # trials per pass count and tile size on the glass sphere's A/A (chart 7)
     scale_n: tuple[int, ...]  # those pass counts, a side
     stability_check_trials: int  # simulated `check` runs per situation of chart 3
+    equivalence_runs: int  # simulated `check` runs per scale and case (chart 8)
+    equivalence_passes: int  # their budget, passes a side
 
     def pool(self, scene: str, *overrides: str, **changes) -> PoolSpec:
         spec = PoolSpec(scene, tuple(overrides), self.resolution, 1, self.passes)
@@ -103,6 +105,8 @@ FULL = Budget(
     scale_trials=300,
     scale_n=(8, 16, 24, 32, 48, 64, 96, 128, 192),
     stability_check_trials=1000,
+    equivalence_runs=200,
+    equivalence_passes=2048,
 )
 
 QUICK = Budget(
@@ -131,6 +135,8 @@ QUICK = Budget(
     scale_trials=6,
     scale_n=(4, 8),
     stability_check_trials=6,
+    equivalence_runs=4,
+    equivalence_passes=64,
 )
 
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import aa, cost, decision, detection, pvalues, scales, stability
+from . import aa, cost, decision, detection, equivalence, pvalues, scales, stability
 from .words import WELCH
 from .words import best as _best
 from .words import fine_share as _fine_share
@@ -17,7 +17,7 @@ from .words import x as _x
 
 #: Each chart's module writes its own section (`section(figures)`), in this order.
 SECTIONS = {"chart1": detection, "chart2": pvalues, "chart3": stability, "chart4": cost, "chart5": decision,
-            "chart6": aa, "chart7": scales}  # fmt: skip
+            "chart6": aa, "chart7": scales, "chart8": equivalence}  # fmt: skip
 
 
 def goal_lines(f: dict) -> list[str]:

@@ -89,9 +89,12 @@ def test_the_budget_ends_inconclusive_with_the_bias_it_rules_out(tmp_path):
 
 
 @pytest.mark.slow
-def test_ctrl_c_keeps_everything_and_resume_continues(tmp_path):
-    args = [sys.executable, "-m", "batch", "check", *map(str, SMALL), "--unpaired", "--tolerance", "0.05%",
-            "--max-passes", "200", "--json-progress", "--out", str(tmp_path)]  # fmt: skip
+def test_ctrl_c_keeps_everything_resume_continues_and_the_budget_grows(tmp_path):
+    """Interrupted at its fourth look, resumed to its budget, then given more passes: the looks made stand, the
+    new ones come at the schedule's next points and both sides' seeds grow without overlapping. 16 spp a pass,
+    so that the interrupt lands long before the budget is spent however loaded the machine."""
+    common = (*SMALL, "--unpaired", "--spp", 16, "--tolerance", "0.05%", "--out", tmp_path)
+    args = [sys.executable, "-m", "batch", "check", *map(str, common), "--max-passes", "200", "--json-progress"]
     proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     seen = 0
     for line in proc.stdout:
@@ -104,18 +107,34 @@ def test_ctrl_c_keeps_everything_and_resume_continues(tmp_path):
     assert proc.returncode == 130, err
     before = json.loads((tmp_path / "check.json").read_text())["looks"]
     assert len(before) >= 4
-    done = check(*SMALL, "--unpaired", "--tolerance", "0.05%", "--max-passes", 200, "--out", tmp_path)
+    done = check(*common, "--max-passes", 200)
     assert done.returncode == 2 and "already exists: pass --resume" in done.stderr
-    done = check(*SMALL, "--unpaired", "--tolerance", "0.05%", "--max-passes", 100, "--resume", "--out", tmp_path)
-    assert done.returncode == 2
-    assert "can't resume" in done.stderr and "other arguments" in done.stderr
-    done = check(*SMALL, "--unpaired", "--tolerance", "0.05%", "--max-passes", 200, "--resume", "--out", tmp_path)
-    assert done.returncode in (0, 3), done.stderr
+    done = check(*common, "--max-passes", 100, "--resume", expect=2)
+    assert done.stderr.strip().endswith(
+        f"can't resume {tmp_path} with --max-passes 100: it has a budget of 200 passes a side, which can grow but "
+        "not shrink"
+    )
+    done = check(*common, "--max-passes", 200, "--resume", expect=3)
     after = json.loads((tmp_path / "check.json").read_text())["looks"]
     assert after[: len(before)] == before  # the earlier looks stand, their boundaries are recomputed alike
-    assert after[-1]["passes"] > before[-1]["passes"]
+    assert after[-1]["passes"] == 200 and after[-1]["verdict"] == "inconclusive"
+    assert "--max-passes and --resume" in done.stdout  # the advice the next step gives
+
+    done = check(*common, "--max-passes", 200, "--resume", expect=3)  # spent and not grown: the same answer
+    assert json.loads((tmp_path / "check.json").read_text())["looks"] == after
+    done = check(*common, "--max-passes", 229, "--resume", expect=2)
+    assert done.stderr.strip().endswith(f"--max-passes 229 adds no look to {tmp_path}: its next look is at 230 "
+                                        "passes a side")  # fmt: skip
+    done = check(*common, "--max-passes", 300, "--resume", expect=3)
+    grown = json.loads((tmp_path / "check.json").read_text())
+    assert grown["looks"][: len(after)] == after and [look["passes"] for look in grown["looks"][len(after) :]] == [
+        230,
+        265,
+    ]  # the schedule goes on from 200 in 15 % steps; 305 does not fit
+    assert grown["budget"] == 265 and grown["plan"]["max_passes"] == 200
+    assert grown["looks"][-2]["fraction"] == 230 / 200
     ref, test = wc.load_stats(tmp_path / "reference.npz"), wc.load_stats(tmp_path / "test.npz")
-    assert set(ref.seeds).isdisjoint(test.seeds) and len(set(ref.seeds)) == ref.n
+    assert ref.seeds == list(range(265)) and test.seeds == list(range(1_000_000, 1_000_265))
 
 
 def test_tolerance_off_means_no_equivalent_verdict():

@@ -1,5 +1,6 @@
-"""The simulated `check` runs of the benchmarks (charts 5-7): the simulation on synthetic pools, the tallies, and
-the quick pipeline of charts 5, 6 and 7 end to end (Cycles renders; the values of the quick run mean nothing)."""
+"""The simulated `check` runs of the benchmarks (charts 5-8): the simulation on synthetic pools, the tallies, chart
+8's synthetic scene and its oracle, and the quick pipeline of charts 5 to 8 end to end (Cycles renders; the values
+of the quick run mean nothing)."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ import pytest
 
 import welch_core as wc
 from benchmarks import checks
+from benchmarks.equivalence import Model
 
 REPO = Path(__file__).resolve().parent.parent
 SIZE, TILE = 64, 16
@@ -75,14 +77,14 @@ def test_quick_decision_charts_write_every_output(tmp_path):
     pytest.importorskip("bpy")
     out, cache = tmp_path / "out", tmp_path / "cache"
     run = subprocess.run(
-        [sys.executable, "-m", "benchmarks", "--quick", "--charts", "5", "6", "7", "--out", str(out), "--cache",
+        [sys.executable, "-m", "benchmarks", "--quick", "--charts", "5", "6", "7", "8", "--out", str(out), "--cache",
          str(cache)],
         cwd=REPO, capture_output=True, text=True, timeout=600,
     )  # fmt: skip
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
     figures = json.loads((out / "figures.json").read_text())
     readme = (out / "README.md").read_text()
-    for chart in ("chart5", "chart6", "chart7"):
+    for chart in ("chart5", "chart6", "chart7", "chart8"):
         for name in figures[chart]["files"]:
             assert (out / name).stat().st_size > 0, name
             if name.endswith(".png"):
@@ -91,3 +93,28 @@ def test_quick_decision_charts_write_every_output(tmp_path):
     assert {"paired", "unpaired", "paired_noeq", "unpaired_noeq"} <= modes
     assert {r["pair"] for r in figures["chart6"]["rows"]} >= {"corner", "glass"}
     assert "The goals of issue 11, measured" in readme
+
+
+def test_chart8_scene_has_the_moments_it_claims():
+    """The synthetic passes' sample mean and variance match the model's (the oracle is computed from the model)."""
+    model = Model()
+    sums = model.draw(np.random.default_rng(1), 40_000)
+    np.testing.assert_allclose(sums.mean(axis=0), model.mean, rtol=1e-3)
+    np.testing.assert_allclose(sums.var(axis=0, ddof=1), model.variance, rtol=0.08)
+    np.testing.assert_allclose(model.at(model.mean, 128), model.mean.sum(axis=(0, 1))[None, None])
+
+
+def test_chart8_oracle_matches_its_design_simulated():
+    """The oracle's median pass count, against the design it stands for simulated with known variances: at that n
+    about half the A/A images have every tile-channel's two one-sided z-tests reject; at its p90 about 90 %."""
+    from scipy import stats
+
+    model, rng, z = Model(), np.random.default_rng(2), stats.norm.ppf(0.99)
+    for tile, q in ((32, 0.5), (64, 0.9)):
+        n = model.oracle(tile, q)
+        mean, variance = model.at(model.mean, tile), model.at(model.variance, tile)
+        d = rng.normal(0.0, np.sqrt(2 * variance / n), size=(4000, *mean.shape))  # difference of the means
+        passed = np.all(np.abs(d) + z * np.sqrt(2 * variance / n) <= 0.01 * mean, axis=(1, 2, 3))
+        assert abs(passed.mean() - q) < 0.03, (tile, n, passed.mean())
+    medians = [model.oracle(tile, 0.5) for tile in (16, 32, 64, 128)]
+    assert medians == sorted(medians, reverse=True)  # coarser tiles average the noise down

@@ -25,14 +25,15 @@ def increments(fractions, alpha):
     return np.diff(np.concatenate(([0.0], spent)))
 
 
-def exits_by_multivariate_normal(fractions, c, rng, relative_error=1e-7):
+def exits_by_multivariate_normal(fractions, c, rng, relative_error=1e-7, clip=True):
     """P(|Z_1| < c_1, ..., |Z_{k-1}| < c_{k-1}, |Z_k| >= c_k) from the joint normal with corr sqrt(t_i / t_j).
 
     By symmetry it is twice the probability of the box (-c_1, c_1) x ... x [c_k, inf). scipy integrates that box
     directly (`lower_limit`); the 2^k-corner inclusion/exclusion of plain CDFs would cancel to nothing at levels
     of 1e-6. The QMC error tolerance is absolute, so it is set from the size of the probability.
     """
-    t = np.minimum(np.asarray(fractions, dtype=float), 1.0)
+    t = np.asarray(fractions, dtype=float)
+    t = np.minimum(t, 1.0) if clip else t
     cov = np.sqrt(np.minimum.outer(t, t) / np.maximum.outer(t, t))
     exits = [2.0 * stats.norm.sf(c[0])]
     for k in range(1, t.size):
@@ -191,6 +192,48 @@ def test_exit_probabilities_match_multivariate_normal(fractions, alphas):
         checked = (np.arange(len(fractions)) == 0) | (expected > 1e-12)
         assert checked[-1]
         assert_allclose(exits[checked], expected[checked], rtol=1e-6, atol=0, err_msg=f"alpha = {alpha}")
+
+
+def reserve_spending(t, alpha, reserve):
+    """The spending with a reserve, written out: (1 - r) alpha ln(1 + (e - 1) t) up to t = 1, alpha (1 - r / t)
+    beyond (Pocock's shape)."""
+    t = np.asarray(t, dtype=float)
+    inside = (1 - reserve) * alpha * np.log(1 + (math.e - 1) * np.minimum(t, 1.0))
+    return np.where(t <= 1.0, inside, alpha * (1 - reserve / np.maximum(t, 1.0)))
+
+
+@pytest.mark.parametrize(
+    ("fractions", "alphas"),
+    [
+        ([0.25, 0.5, 1.0, 1.5, 3.0], [0.05, 1e-4]),  # a grown budget: looks past the planned last one
+        ([0.4, 1.0], [0.05]),  # the planned last look keeps the reserve
+        ([1.2, 2.0], [0.05]),  # the first look already past the end
+    ],
+)
+def test_a_reserve_is_kept_at_the_end_and_spent_past_it(fractions, alphas):
+    rng = np.random.default_rng(20261202)
+    c = boundaries(fractions, alphas, "pocock", reserve=0.1)
+    for j, alpha in enumerate(alphas):
+        spent = reserve_spending(fractions, alpha, 0.1)
+        expected = np.diff(np.concatenate(([0.0], spent)))
+        exits = exits_by_multivariate_normal(fractions, c[:, j], rng, clip=False)
+        assert_allclose(exits, expected, rtol=1e-5, atol=0, err_msg=f"alpha = {alpha}")
+        assert exits.sum() < alpha  # never all of it, however far the looks go
+    # The boundaries of the looks up to the planned end don't depend on the looks after it.
+    assert_array_equal(boundaries(fractions[:2], alphas, "pocock", reserve=0.1), c[:2])
+
+
+def test_no_reserve_is_the_plain_spending():
+    t = [0.2, 0.5, 1.0]
+    assert_array_equal(boundaries(t, [0.05], "pocock", reserve=0.0), boundaries(t, [0.05], "pocock"))
+    # With a reserve the last planned look spends 0.9 alpha: its boundary is the plain one of 0.9 alpha.
+    assert_allclose(boundaries(t, [0.05], "pocock", reserve=0.1), boundaries(t, [0.045], "pocock"), rtol=1e-9)
+
+
+@pytest.mark.parametrize("reserve", [-0.1, 1.0, np.nan])
+def test_a_reserve_outside_0_1_is_refused(reserve):
+    with pytest.raises(WelchInputError, match=rf"^`reserve` must lie in \[0, 1\), got {reserve!r}$"):
+        boundaries([0.5, 1.0], [0.05], reserve=reserve)
 
 
 def test_monte_carlo_crossing_rates():

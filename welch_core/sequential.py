@@ -201,14 +201,23 @@ SPENDING = {
 }
 
 
-def _log_spending(t: np.ndarray, alpha: np.ndarray, spending: str = "obrien_fleming") -> np.ndarray:
-    """log alpha(t) for t in (0, 1] (rows) and alphas (columns); finite far below the smallest double."""
+def _log_spending(
+    t: np.ndarray, alpha: np.ndarray, spending: str = "obrien_fleming", reserve: float = 0.0
+) -> np.ndarray:
+    """log alpha(t) for t > 0 (rows) and alphas (columns); finite far below the smallest double. With a `reserve`
+    (see `boundaries`) it is (1 - reserve) alpha(t) up to t = 1 and alpha (1 - reserve / t) beyond."""
+    inside = np.minimum(t, 1.0)
     if spending == "pocock":
-        logs = np.log(alpha)[None, :] + np.log(np.log1p((math.e - 1.0) * t))[:, None]
+        logs = np.log(alpha)[None, :] + np.log(np.log1p((math.e - 1.0) * inside))[:, None]
     else:
         z = -special.ndtri(alpha / 2.0)
-        logs = _LOG2 + special.log_ndtr(-z[None, :] / np.sqrt(t)[:, None])
-    return np.where(t[:, None] >= 1.0, np.log(alpha)[None, :], logs)
+        logs = _LOG2 + special.log_ndtr(-z[None, :] / np.sqrt(inside)[:, None])
+    logs = np.where(t[:, None] >= 1.0, np.log(alpha)[None, :], logs)
+    if reserve == 0.0:
+        return logs
+    with np.errstate(divide="ignore"):
+        beyond = np.log(alpha)[None, :] + np.log1p(-reserve / np.maximum(t, 1.0))[:, None]
+    return np.where(t[:, None] > 1.0, beyond, logs + math.log1p(-reserve))
 
 
 def _isf_log(log_p: float) -> float:
@@ -533,19 +542,27 @@ def _propagate_all(
 # -- public ------------------------------------------------------------------------------------------------------
 
 
-def boundaries(fractions: npt.ArrayLike, alphas: npt.ArrayLike, spending: str = "obrien_fleming") -> np.ndarray:
+def boundaries(
+    fractions: npt.ArrayLike, alphas: npt.ArrayLike, spending: str = "obrien_fleming", reserve: float = 0.0
+) -> np.ndarray:
     """Two-sided group-sequential boundaries by Lan-DeMets alpha spending (O'Brien-Fleming shape by default).
 
     Parameters
     ----------
     fractions : array_like
         Information fractions of the looks so far (passes so far / planned maximum passes), 1-D, strictly
-        increasing and positive. Values >= 1 are clipped to 1 (the final look, which spends everything); only the
-        last one may be >= 1.
+        increasing and positive. Without a `reserve`, values >= 1 are clipped to 1 (the final look, which spends
+        everything) and only the last one may be >= 1.
     alphas : array_like
         Overall two-sided levels, 1-D, each in (0, 1) (one per hypothesis, e.g. its Bonferroni share).
     spending : {"obrien_fleming", "pocock"}
         The spending function (see `SPENDING`).
+    reserve : float, in [0, 1)
+        The share of each alpha kept for looks past the planned maximum (fractions > 1, a budget grown after the
+        planned last look): ``(1 - reserve) alpha(t)`` is spent up to t = 1 and ``alpha (1 - reserve / t)``
+        beyond, so the level spent stays below alpha however far the looks go. The spending is fixed before any
+        data, so growing the budget after seeing them keeps the level (Lan and DeMets 1983: only the spending
+        function, not the number or the timing of the looks, must be fixed in advance).
 
     Returns
     -------
@@ -561,20 +578,26 @@ def boundaries(fractions: npt.ArrayLike, alphas: npt.ArrayLike, spending: str = 
     Raises
     ------
     WelchInputError
-        For empty or not 1-D input, fractions that are not strictly increasing and positive or reach 1 before
-        the last look, and alphas outside (0, 1).
+        For empty or not 1-D input, fractions that are not strictly increasing and positive or (without a
+        reserve) reach 1 before the last look, alphas outside (0, 1) and a reserve outside [0, 1).
     """
     t = _as_vector("fractions", fractions)
     if not (t[0] > 0.0 and np.all(np.diff(t) > 0.0)):  # NaN fails too
         raise WelchInputError(f"`fractions` must be strictly increasing and positive, got {_show(t)}")
-    if np.any(t[:-1] >= 1.0):
+    if not 0.0 <= reserve < 1.0:  # NaN fails too
+        raise WelchInputError(f"`reserve` must lie in [0, 1), got {reserve!r}")
+    if reserve == 0.0 and np.any(t[:-1] >= 1.0):
         raise WelchInputError(f"`fractions` may be >= 1 only at the last look, got {_show(t)}")
     alphas = _as_vector("alphas", alphas)
     _check_alphas("alphas", alphas)
     if spending not in SPENDING:
         raise WelchInputError(f"`spending` must be one of {tuple(SPENDING)}, got {spending!r}")
-    t = np.minimum(t, 1.0)
-    return _compute(t, _log_spending(t, alphas, spending), SPENDING[spending](t[0], alphas))
+    if reserve == 0.0:
+        t = np.minimum(t, 1.0)
+    first = SPENDING[spending](min(t[0], 1.0), alphas)  # the first look's level directly: tiny ones keep precision
+    if reserve:
+        first = first * (1.0 - reserve) if t[0] <= 1.0 else alphas * (1.0 - reserve / t[0])
+    return _compute(t, _log_spending(t, alphas, spending, reserve), first)
 
 
 def nominal_levels(c: npt.ArrayLike) -> np.ndarray:

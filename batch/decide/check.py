@@ -26,11 +26,19 @@ from ..errors import BatchError
 from ..jobs import protocol
 from ..jobs.distributed import Cluster, ClusterSide, cluster
 from ..jobs.job import RenderJob
+from ..jobs.seeds import MAX_PASSES, parse_seeds
 from ..jobs.side import Side
 from ..present.progress import Progress
 
 STATE_FILE = "check.json"
-STATE_VERSION = 1
+STATE_VERSION = 2  # 2: the budget apart from the plan, and the plan's alpha reserve for a grown budget
+
+#: A check that ended with one of these stopped on its evidence: resuming it answers with that verdict.
+DECIDED = ("biased", "equivalent")
+
+#: The seeds of an unpaired check's test side start here, whatever the budget (the reference's start at 0): a
+#: grown budget extends both sides' seeds and they never overlap.
+UNPAIRED_SEEDS = MAX_PASSES  # --max-passes is at most this
 
 #: Passes a side when neither --max-passes nor --max-seconds is given.
 DEFAULT_MAX_PASSES = 512
@@ -106,6 +114,9 @@ class Check:
         self.rendered = [self.test] if job.fixed_reference else [self.reference, self.test]
         self.looks: list[dict] = []
         self.plan = job.plan(job.max_passes) if job.max_passes else None
+        # The passes a side it may render: the plan's, or more when a resumed check's budget grew (its looks past
+        # the plan's last spend the alpha kept for them, `wc.looks.EXTENSION_RESERVE`).
+        self.budget = job.max_passes
         self.render_seconds = 0.0
 
     # -- state on disk ---------------------------------------------------------------------------------------
@@ -115,6 +126,7 @@ class Check:
             "format": "welch-bias-check",
             "version": STATE_VERSION,
             "plan": dataclasses.asdict(self.plan) if self.plan is not None else None,
+            "budget": self.budget,
             "max_seconds": self.job.max_seconds,
             "reference": _side_record(self.job.reference),
             "test": _side_record(self.job.test),
@@ -136,21 +148,64 @@ class Check:
             raise BatchError(f"{path} is not a readable check state ({exc})") from None
         if not isinstance(state, dict) or state.get("format") != "welch-bias-check":
             raise BatchError(f"{path} is not a check state file")
+        if state.get("version") != STATE_VERSION:
+            raise BatchError(
+                f"{path} was written by another version of this tool (check state {state.get('version')!r}, this one "
+                f"reads {STATE_VERSION}): start the check again with another --out"
+            )
+        grown = []  # the sides whose seeds were extended (a grown budget)
         for side in (self.reference, self.test):
-            if state.get(side.name) != _side_record(side.job):
-                raise BatchError(f"can't resume {self.job.out}: the {side.name} side was started with other arguments")
+            stored_record, record = state.get(side.name), _side_record(side.job)
+            if stored_record != record:
+                if not _reseeded(stored_record, record):
+                    raise BatchError(
+                        f"can't resume {self.job.out}: the {side.name} side was started with other arguments"
+                    )
+                grown.append(side.name)
         stored = None
         if state.get("plan") is not None:  # None: stopped before a time budget became a pass budget
             try:
                 stored = wc.SequentialPlan(**state["plan"])
             except (KeyError, TypeError, wc.WelchInputError) as exc:
                 raise BatchError(f"{path} is not a readable check state ({exc})") from None
-        planned = self.job.plan(stored.max_passes) if stored is not None else None
-        if planned != stored or state.get("max_seconds") != self.job.max_seconds:
-            raise BatchError(f"can't resume {self.job.out}: it was started with another budget, alpha or tolerance")
+        budget = state.get("budget") or (stored.max_passes if stored is not None else None)
+        if stored is not None and state.get("max_seconds") is None and self.job.max_seconds is None:
+            planned = self.job.plan(stored.max_passes)  # the design is the stored one; only the budget may grow
+            if planned != stored:
+                raise BatchError(f"can't resume {self.job.out}: it was started with another alpha or tolerance")
+            if self.job.max_passes < budget:
+                raise BatchError(
+                    f"can't resume {self.job.out} with --max-passes {self.job.max_passes}: it has a budget of "
+                    f"{budget} passes a side, which can grow but not shrink"
+                )
+            budget = self._grown_budget(stored, budget)
+        else:
+            planned = self.job.plan(stored.max_passes) if stored is not None else None
+            if planned != stored or state.get("max_seconds") != self.job.max_seconds or grown:
+                raise BatchError(
+                    f"can't resume {self.job.out}: it was started with another budget, alpha or tolerance"
+                    + (" (the budget of a --max-seconds check does not grow: start it with --max-passes)"
+                       if state.get("max_seconds") is not None and self.job.max_seconds is None else "")
+                )  # fmt: skip
+        self.budget = budget
         self.plan = stored
         self.looks = list(state.get("looks", []))
         self.render_seconds = float(state.get("render_seconds", 0.0))
+
+    def _grown_budget(self, plan: wc.SequentialPlan, budget: int) -> int:
+        """The budget a resumed check gets from --max-passes: the last look of the schedule it fits (the looks past
+        the plan's last follow from the plan alone, not from the budget asked for)."""
+        asked = self.job.max_passes
+        if asked == budget:
+            return budget
+        fits = wc.look_schedule(plan.max_passes, budget=asked)[-1]
+        if fits <= budget:
+            after = wc.look_schedule(plan.max_passes, budget=10 * budget + 10)
+            following = next(n for n in after if n > budget)
+            raise BatchError(
+                f"--max-passes {asked} adds no look to {self.job.out}: its next look is at {following} passes a side"
+            )
+        return fits
 
     # -- the sides -------------------------------------------------------------------------------------------
 
@@ -201,6 +256,7 @@ class Check:
         left = self.job.max_seconds - self.render_seconds
         passes = done + int(left / max(seconds_per_pass, 1e-9))
         self.plan = self.job.plan(min(max(passes, wc.looks.FIRST_LOOK), len(self.job.test.seeds)))
+        self.budget = self.plan.max_passes
 
     def run(self) -> tuple[wc.Look, wc.TileStats, wc.TileStats]:
         if self.job.resume:
@@ -220,8 +276,10 @@ class Check:
     def _loop(self):
         done = max([look["passes"] for look in self.looks] + [min(s.passes for s in self.rendered)])
         fractions = [look["fraction"] for look in self.looks]
-        if self.looks and self.looks[-1]["verdict"] is not None:
-            # Decided already (a resumed check): answer with that decision; another look would be one more peek.
+        last = self.looks[-1] if self.looks else None
+        if last is not None and (last["verdict"] in DECIDED or (last["verdict"] is not None and done >= self.budget)):
+            # Decided already (a resumed check), or its budget spent and not grown: answer with that outcome; another
+            # look would be one more peek.
             ref, test = self._load()
             n = self.looks[-1]["passes"]
             ref, test = (ref if self.job.fixed_reference else self._at(ref, n)), self._at(test, n)
@@ -229,7 +287,7 @@ class Check:
         if self.plan is None:
             self._render_to(wc.looks.FIRST_LOOK)
             self._fix_budget()
-        schedule = [n for n in wc.look_schedule(self.plan.max_passes) if n > done]
+        schedule = [n for n in wc.look_schedule(self.plan.max_passes, budget=self.budget) if n > done]
         deadline = None if self.job.max_seconds is None else self.job.max_seconds
         look = None
         for index, n in enumerate(schedule):
@@ -240,7 +298,7 @@ class Check:
             ref, test = self._load()
             n = min(ref.n, test.n) if not self.job.fixed_reference else test.n
             fractions.append(self._fraction(n))
-            look = wc.sequential_look(ref, test, self.plan, fractions)
+            look = wc.sequential_look(ref, test, self.plan, fractions, final=index == len(schedule) - 1)
             self.looks.append(_look_record(look, self.render_seconds))
             self._save_state()
             bound = look.ruled_out if math.isfinite(look.ruled_out) else None
@@ -274,6 +332,22 @@ def _side_record(job: RenderJob) -> list[str]:
     """What must stay the same for a side to be resumed: its job's arguments, its statistics file by its name in
     the check's folder (the folder may be given another way, or moved)."""
     return job.replace(resume=False, out=Path(job.out).name).to_argv()
+
+
+def _reseeded(stored: list[str] | None, record: list[str]) -> bool:
+    """Whether side `record` is side `stored` with its seeds' list made longer or shorter at the end (another
+    budget)."""
+    if not isinstance(stored, list) or len(stored) != len(record) or "--seeds" not in record:
+        return False
+    at = record.index("--seeds") + 1
+    if stored[:at] != record[:at] or stored[at + 1 :] != record[at + 1 :]:
+        return False
+    try:
+        before, after = parse_seeds(stored[at]), parse_seeds(record[at])
+    except ValueError:
+        return False
+    common = min(len(before), len(after))
+    return before[:common] == after[:common]
 
 
 def _look_record(look: wc.Look, seconds: float) -> dict:
@@ -346,7 +420,7 @@ def check_job_from_args(args) -> CheckJob:
     same_build = (args.test_blender or args.blender) == args.blender
     paired = same_build and not args.unpaired
     ref_seeds = range(count)
-    test_seeds = ref_seeds if paired else range(count, 2 * count)
+    test_seeds = ref_seeds if paired else range(UNPAIRED_SEEDS, UNPAIRED_SEEDS + count)
     out = Path(args.out)
     common = {
         "spp": args.spp,
@@ -355,7 +429,7 @@ def check_job_from_args(args) -> CheckJob:
         "device": args.device,
         "sampling_pattern": args.sampling_pattern,
         "resume": args.resume,
-        "checkpoint_every": count,  # saved after every chunk anyway
+        "checkpoint_every": MAX_PASSES,  # saved after every chunk anyway (and the same whatever the budget)
         "lobes": args.lobes,
     }
     reference = RenderJob(

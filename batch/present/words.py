@@ -160,7 +160,8 @@ def next_step(outcome: dict[str, Any], check: bool = False) -> str:
     """What to do with this verdict, in a sentence or two."""
     reason = outcome["reason"]
     more = (
-        "run the same check again with a larger --max-passes and --resume: the looks already made keep their boundaries"
+        "run the same check again with a larger --max-passes and --resume: the looks already made keep their "
+        "boundaries, and the looks past the budget spend the share of alpha kept for them"
         if check
         else "render more passes into both runs (the same render commands with --resume and more seeds), then "
         "compare again, or let `python -m batch check` render until it decides"
