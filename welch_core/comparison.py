@@ -181,6 +181,13 @@ class TileTest:
     #: for independent sides; paired, from the per-pass covariance): what a ratio's interval needs
     ref_var: np.ndarray
     cross: np.ndarray
+    #: paired runs: the tile-channels tested by Welch's test on the two sides instead (`test_tiles`)
+    unpaired: np.ndarray | None = None
+
+    @property
+    def welch(self) -> np.ndarray | bool:
+        """Where the result is Welch's test: everywhere (disjoint seeds), or a paired run's `unpaired` tiles."""
+        return True if self.kind == "welch" else (self.unpaired if self.unpaired is not None else False)
 
 
 def scale_factors(run: TileStats, tile: int | None = None) -> list[int]:
@@ -202,23 +209,42 @@ def scale_factors(run: TileStats, tile: int | None = None) -> list[int]:
 
 def test_tiles(ref: TileStats, test: TileStats, kind: str, pvalue_method: str = "exact") -> TileTest:
     """Welch's test (disjoint seeds) or the paired test (identical seeds) per tile and channel, with the
-    normality check of the Welch samples (of each side, or of the per-pass differences)."""
+    normality check of the Welch samples (of each side, or of the per-pass differences).
+
+    Paired runs: where the per-pass differences are clearly not normal but each side's own samples are (a change
+    that alters a few light paths: differences exactly zero in most passes and large in a few), the tile-channel
+    is tested by Welch's test on the two sides instead, as if their passes were independent. With the same seeds
+    the sides are positively correlated, so Var(test) + Var(ref) overstates the variance of the difference and
+    the test is conservative; it sees what an unpaired test sees, where the paired one would see nothing. Only
+    where the sides' sample covariance is positive: with a negative one Welch's variance would understate it.
+    """
     with np.errstate(invalid="ignore", divide="ignore"):
         ref_var = ref.variance / ref.n
+    own = normality(ref).suspect | normality(test).suspect
     if kind == "paired":
         diffs = paired_differences(ref, test)
         result = paired_from_stats(diffs.mean, diffs.variance, diffs.n, pvalue_method=pvalue_method)
         # cov(d, r) per pass from Var(test) = Var(ref) + Var(d) + 2 cov(d, r), over the passes' count
         with np.errstate(invalid="ignore", divide="ignore"):
             cross = (test.variance - ref.variance - diffs.variance) / (2.0 * diffs.n)
+            sides = test.variance + ref.variance - diffs.variance  # 2 cov(test, ref) per pass
+        suspect = normality(diffs).suspect
+        unpaired = suspect & ~own & (sides > 0)
+        if unpaired.any():
+            welch = welch_from_stats(
+                ref.mean, ref.variance, ref.n, test.mean, test.variance, test.n, pvalue_method=pvalue_method
+            )
+            fields = (f.name for f in dataclasses.fields(TTestResult))
+            result = TTestResult(**{f: np.where(unpaired, getattr(welch, f), getattr(result, f)) for f in fields})
+            cross = np.where(unpaired, -ref_var, cross)
+            suspect = suspect & ~unpaired
         checked = diffs.n >= MIN_PASSES_FOR_NORMALITY
-        return TileTest(kind, result, normality(diffs).suspect, checked, ref.mean, ref_var, cross)
+        return TileTest(kind, result, suspect, checked, ref.mean, ref_var, cross, unpaired)
     result = welch_from_stats(
         ref.mean, ref.variance, ref.n, test.mean, test.variance, test.n, pvalue_method=pvalue_method
     )
-    suspect = normality(ref).suspect | normality(test).suspect
     checked = min(ref.n, test.n) >= MIN_PASSES_FOR_NORMALITY
-    return TileTest(kind, result, suspect, checked, ref.mean, ref_var, -ref_var)
+    return TileTest(kind, result, own, checked, ref.mean, ref_var, -ref_var)
 
 
 def paired_differences(ref: TileStats, test: TileStats) -> TileStats:

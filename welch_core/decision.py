@@ -121,6 +121,7 @@ class ScaleResult:
     tiles: int  # tiles of the grid
     tested: int  # tiles with a p-value that enter the `biased` test (trusted)
     untrusted: int  # tiles with a p-value left out (Welch samples clearly not normal)
+    unpaired: int  # paired runs: tiles tested by Welch's test on the two sides (their differences not normal)
     significant: int  # tiles with a tile-channel found significant
     p_value: float | None  # this scale's own p-value (fixed design only)
     ruled_out: float | None  # the largest |relative bias| left open over its tiles; None: some tile is unbounded
@@ -332,9 +333,10 @@ def _bounds(scale, tested, level: float, enough: bool):
     valid = (reasons == Reason.VALID) & scale.trusted[..., None] & enough
     equal = (reasons == Reason.ZERO_VARIANCE) & enough
     bound = np.where(valid & np.isfinite(bound), bound, np.inf)
-    with np.errstate(invalid="ignore", divide="ignore"):
+    with np.errstate(invalid="ignore", divide="ignore"):  # inf - inf where a tile has no interval: NaN
         estimate = tested.result.mean_difference / np.abs(tested.ref_mean)
-    return np.where(equal, 0.0, bound), estimate, np.maximum(high - estimate, estimate - low)
+        half = np.maximum(high - estimate, estimate - low)
+    return np.where(equal, 0.0, bound), estimate, half
 
 
 def _scale_result(scale, significant, bounds, tolerance, n: int, run, p_value, identical_needed: int) -> ScaleResult:
@@ -350,6 +352,7 @@ def _scale_result(scale, significant, bounds, tolerance, n: int, run, p_value, i
         tiles=int(scale.tile_pvalues.size),
         tested=int(scale.used.sum()),
         untrusted=scale.n_untrusted,
+        unpaired=0 if scale.tested.unpaired is None else int(scale.tested.unpaired.any(axis=-1).sum()),
         significant=int(np.asarray(significant).any(axis=-1).sum()),
         p_value=p_value,
         ruled_out=worst if worst <= MAX_SHOWN_BOUND else None,

@@ -168,7 +168,8 @@ def _conservative(tested: TileTest, n: int) -> TileTest:
     """Welch's test with n - 1 degrees of freedom (n the smaller side's passes) instead of Welch-Satterthwaite's
     real-valued nu: a boundary's level is far out in the tail, where nu overstates the evidence of small runs
     with unequal variances (at n = 10 a side, variances 1:9 and normal samples, the 3e-4 tail is 1.7x its
-    nominal size; with n - 1, at most 1.14x for skewness up to 0.5, measured)."""
+    nominal size; with n - 1, at most 1.14x for skewness up to 0.5, measured). A paired test already has n - 1:
+    its p-values are unchanged."""
     result = tested.result
     valid = result.reason == Reason.VALID
     df = np.where(valid, n - 1.0, np.nan)
@@ -208,9 +209,9 @@ def sequential_look(
     scales, tests, runs, uncovered = assess_scales(ref, test, kind, "exact", plan.alpha)
     whole = test_tiles(ref.whole(), test.whole(), kind)
     n = min(ref.n, test.n)
-    if kind == "welch":
-        tests = [_conservative(t, n) for t in tests]
-        whole = _conservative(whole, n)
+    if any(np.any(t.welch) for t in (*tests, whole)):  # Welch's test somewhere (a paired run's sparse tiles too)
+        tests = [_conservative(t, n) if np.any(t.welch) else t for t in tests]
+        whole = _conservative(whole, n) if np.any(whole.welch) else whole
         scales = tuple(dataclasses.replace(s, result=t.result) for s, t in zip(scales, tests, strict=True))
     shares = tuple(plan.alpha / (len(scales) * scale.pvalues.size) for scale in scales)
     equivalence_alpha = min(2 * plan.alpha, 0.5)

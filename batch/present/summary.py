@@ -200,6 +200,13 @@ def notes(c: wc.Comparison, outcome: wc.Outcome | None = None) -> list[str]:
         )
     elif untrusted:
         out.append(f"{untrusted} of {valid} {c.tile}x{c.tile} tiles have clearly non-normal Welch samples")
+    unpaired = [f"{s.unpaired} of {s.tiles} at {s.tile}x{s.tile}" for s in outcome.scales if s.unpaired]
+    if unpaired:
+        out.append(
+            "tiles whose per-pass differences are far from normal (a change that alters a few light paths: most "
+            "differences zero, a few large) were tested by Welch's test on the two sides instead "
+            f"({', '.join(unpaired)}; conservative, the shared seeds correlate the sides)"
+        )
     if outcome.untestable:
         out.append(
             f"{outcome.untestable} {c.tile}x{c.tile} tiles can be tested at no tile size (their Welch samples "
