@@ -204,6 +204,12 @@ def test_bless_records_provenance_and_refuses_a_changed_reference(blessed, tmp_p
     assert json.loads((refs / "walls.json").read_text())["seeds"] == [12, 24]
     done = batch("suite", "bless", changed, "--refs", refs, "--filter", "walls", "--force", check=0)
     assert "walls: forced" in done.stdout
+    # --missing renders only the cases without a reference: adding a case re-renders nothing else.
+    (refs / "mirror.npz").unlink()
+    stored = (refs / "walls.npz").read_bytes()
+    done = batch("suite", "bless", path, "--refs", refs, "--missing", check=0)
+    assert f"walls: kept: {refs / 'walls.npz'} exists" in done.stdout and "mirror: blessed: 12 passes" in done.stdout
+    assert (refs / "walls.npz").read_bytes() == stored
 
 
 @pytest.mark.slow
@@ -280,3 +286,16 @@ def test_the_builtin_suite_passes_and_a_planted_change_fails_every_case(tmp_path
                  check=1)  # fmt: skip
     named = done.stdout.rpartition("; failed: ")[2].splitlines()[0].split(", ")
     assert sorted(named) == sorted(f"{c.name} [CPU]" for c in cases if c.expect == "same")
+
+
+def test_the_documented_example_suite_is_a_valid_suite(tmp_path):
+    """docs/suite.md's complete example loads as written (its .blend stood in for by an empty file)."""
+    text = (ROOT / "docs" / "suite.md").read_text()
+    example = text.split("```toml\n", 1)[1].split("```", 1)[0]
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "scenes" / "glossy.blend").write_bytes(b"")
+    suite = suites.load_suite(str(write_suite(tmp_path, example)))
+    assert suite.name == "my renderer" and [c.name for c in suite.cases] == ["glossy", "fog_blue_noise"]
+    glossy, fog = suite.cases
+    assert glossy.devices == ("CPU", "OPTIX") and glossy.tolerance == 0.02 and glossy.passes == 128
+    assert fog.expect == "biased" and fog.test_sampling_pattern == "BLUE_NOISE" and fog.spp == 2

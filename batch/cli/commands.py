@@ -275,6 +275,7 @@ def build_parser() -> argparse.ArgumentParser:
         a.add_argument("--json-progress", action="store_true", help="one JSON line per event on stdout")
         if action == "bless":
             a.add_argument("--force", action="store_true", help="replace a reference even where the new one differs")
+            a.add_argument("--missing", action="store_true", help="render only the cases that have no reference")
         else:
             a.add_argument("--out", required=True, metavar="DIR", help="folder for the results and the dashboard")
             a.add_argument(
@@ -544,7 +545,7 @@ def cmd_suite(args) -> int:
         print(line, file=sys.stderr if args.json_progress else sys.stdout, flush=True)
 
     if args.suite_command == "bless":
-        done = suites.bless(suite, cases, refs, progress, args.force, args.blender, args.device, say)
+        done = suites.bless(suite, cases, refs, progress, args.force, args.blender, args.device, say, args.missing)
         for item in done:
             say(f"{item.case}: {item.status}: {item.message}" + (f" (report: {item.report})" if item.report else ""))
         return Exit.BIASED if any(item.status == "refused" for item in done) else Exit.OK

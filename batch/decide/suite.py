@@ -263,22 +263,26 @@ class Blessed:
     """What ``suite bless`` did with one case."""
 
     case: str
-    status: str  # "blessed", "re-blessed", "refused", "forced"
+    status: str  # "blessed", "re-blessed", "refused", "forced", "kept"
     message: str
     report: str | None = None
 
 
 def bless(suite: Suite, cases: list[Case], refs: Path, progress_factory, force: bool = False, blender=None,
-          device: str | None = None, say=print) -> list[Blessed]:  # fmt: skip
+          device: str | None = None, say=print, missing: bool = False) -> list[Blessed]:  # fmt: skip
     """Render the reference of each case into `refs`. A case that has one already gets a new render on new
     seeds, compared with the stored one: where they differ significantly the old one stays (unless `force`), and
-    the comparison's report is kept next to it: a silent re-bless is how thresholds creep."""
+    the comparison's report is kept next to it: a silent re-bless is how thresholds creep. With `missing`, only
+    the cases without a reference are rendered (the others are "kept")."""
     from ..jobs.side import run_job
 
     refs.mkdir(parents=True, exist_ok=True)
     done = []
     for number, case in enumerate(cases, 1):
         target = reference_path(refs, case)
+        if missing and target.exists():
+            done.append(Blessed(case.name, "kept", f"{target} exists"))
+            continue
         old = wc.load_stats(target) if target.exists() else None
         first = 0 if old is None else max(old.seeds) + 1
         fresh = refs / f".{case.name}.new.npz"

@@ -1,0 +1,122 @@
+"""Bias suites as pytest tests: every case of a suite file named ``welch*.toml`` under pytest's test paths is an
+item, decided against its reference as ``python -m batch suite run`` does (`batch.decide.suite`).
+
+A case passes when its verdict is what it expects, fails with the verdict sentence and the report's path, and is
+skipped with the reason when its device is missing; a suite file with a problem is one collection error listing
+every problem. pytest's own ``-k``, ``-x``, ``--junitxml`` and ``-ra`` work as for any test. Options:
+
+``--welch-bless``          render and store the references that are missing (the others are kept)
+``--welch-set KEY=VALUE``  a change for the test side of every case (repeatable): a planted change must fail
+``--welch-refs DIR``       the references' folder (default: ``<suite file's stem>-refs`` next to the suite file)
+``--welch-out DIR``        where each case's report goes (default: pytest's temporary folder)
+``--welch-blender PATH``   the test side's Blender binary (default: the bpy module)
+
+Registered through the ``pytest11`` entry point of the ``welch-bias`` package, so installing the package is all a
+renderer project does. Importing this module imports nothing heavy: the suite machinery loads when a suite file
+is collected.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import shutil
+from pathlib import Path
+
+import pytest
+
+#: The suite files the plugin collects.
+PATTERN = "welch*.toml"
+
+
+def pytest_addoption(parser) -> None:
+    group = parser.getgroup("welch", "bias suites (welch-bias)")
+    group.addoption("--welch-bless", action="store_true", help="render the references that are missing")
+    group.addoption("--welch-set", action="append", default=[], metavar="KEY=VALUE",
+                    help="a change of the test side of every case (RNA.PATH=VALUE, repeatable)")  # fmt: skip
+    group.addoption("--welch-refs", metavar="DIR", help="the references' folder (default: next to the suite file)")
+    group.addoption("--welch-out", metavar="DIR", help="where the cases' reports go (default: pytest's tmp folder)")
+    group.addoption("--welch-blender", metavar="PATH", help="the test side's Blender binary (default: bpy)")
+
+
+def pytest_collect_file(file_path: Path, parent):
+    if fnmatch.fnmatch(file_path.name, PATTERN):
+        return SuiteFile.from_parent(parent, path=file_path)
+    return None
+
+
+class SuiteProblem(Exception):
+    """A suite file or a case that can't be run: shown as its one-line message, without a traceback."""
+
+
+class SuiteFile(pytest.File):
+    """One suite file: its cases on each of their devices."""
+
+    def collect(self):
+        from ..decide import suite as suites
+        from ..errors import BatchError
+
+        try:
+            suite = suites.load_suite(str(self.path))
+        except BatchError as exc:
+            raise self.CollectError(str(exc)) from None
+        for case in suite.cases:
+            for device in case.devices:
+                yield CaseItem.from_parent(self, name=f"{case.name}[{device}]", suite=suite, case=case, device=device)
+
+
+class CaseItem(pytest.Item):
+    """One case on one device, decided against its reference."""
+
+    def __init__(self, *, suite, case, device, **kwargs):
+        super().__init__(**kwargs)
+        self.suite, self.case, self.device = suite, case, device
+
+    def refs(self) -> Path:
+        chosen = self.config.getoption("welch_refs")
+        return Path(chosen) if chosen else self.path.with_name(f"{self.path.stem}-refs")
+
+    def out(self) -> Path:
+        chosen = self.config.getoption("welch_out")
+        if chosen:
+            return Path(chosen) / self.suite.name
+        return self.config._tmp_path_factory.getbasetemp() / "welch" / self.suite.name
+
+    def runtest(self) -> None:
+        from ..decide import suite as suites
+        from ..errors import BatchError
+        from ..present.progress import Progress
+
+        refs, out = self.refs(), self.out()
+        blender = self.config.getoption("welch_blender")
+
+        def progress(total: int) -> Progress:
+            return Progress(total, label="welch", live=False, brief=True)  # the looks, shown when a case fails
+
+        def say(_line: str) -> None:
+            pass
+
+        try:
+            if not suites.reference_path(refs, self.case).exists():
+                if not self.config.getoption("welch_bless"):
+                    raise SuiteProblem(f"no reference for {self.case.name} in {refs}: run pytest with --welch-bless")
+                for done in suites.bless(self.suite, [self.case], refs, progress, say=say, missing=True):
+                    if done.status == "refused":
+                        raise SuiteProblem(f"{done.case}: the new reference was refused: {done.message}")
+            shutil.rmtree(out / self.case.name / self.device, ignore_errors=True)  # each run draws its passes anew
+            (result,) = suites.run_suite(self.suite, [self.case], refs, out, progress, blender, self.device,
+                                         tuple(self.config.getoption("welch_set")), say=say)  # fmt: skip
+        except BatchError as exc:
+            raise SuiteProblem(str(exc)) from None
+        report = f" (report: {Path(result.folder) / 'report.html'})" if result.folder else ""
+        if result.status == "skipped":
+            pytest.skip(result.message)
+        if result.status != "passed":
+            raise SuiteProblem(f"{result.status}: {result.message}{report}")
+
+    def repr_failure(self, excinfo, style=None):
+        if isinstance(excinfo.value, SuiteProblem):
+            return str(excinfo.value)
+        return super().repr_failure(excinfo, style)
+
+    def reportinfo(self):
+        return self.path, None, f"welch case {self.name}"
