@@ -59,8 +59,9 @@ def test_the_page_carries_every_tile_and_both_pictures(tmp_path):
     np.testing.assert_array_equal(f32("rel"), c.effect.rel_diff.astype(np.float32).ravel())
     assert np.frombuffer(base64.b64decode(tiles["significant"]), "u1").tolist() == c.significant.ravel().tolist()
     assert c.significant[1, 2] and f32("scale")[6] == 32
-    assert set(data["pictures"]) == {"reference", "test"} and data["display"] == {"width": 128, "height": 96,
-                                                                                   "factor": 1}  # fmt: skip
+    assert set(data["pictures"]) == {"reference", "test", "difference"}
+    _rgb, limit = wc.difference_picture(ref.pixel_sum / ref.n, test.pixel_sum / test.n)
+    assert data["display"] == {"width": 128, "height": 96, "factor": 1, "difference_scale": pytest.approx(limit)}
     for url in data["pictures"].values():
         assert base64.b64decode(url.removeprefix("data:image/png;base64,"))[:8] == b"\x89PNG\r\n\x1a\n"
     assert data["summary"]["verdict"] == "biased" == json.loads((tmp_path / "report.json").read_text())["verdict"]
@@ -77,7 +78,8 @@ def test_large_images_are_shown_shrunk_and_full_maps_on_request(tmp_path):
     test = wc.TileStats.from_sums(sums + 1, range(4, 8), 2100, 3100, 1024, pixel_sum=pixels)
     c = wc.compare(ref, test)
     report.write_report(tmp_path, summary.summarize(c, ref, test), c, ref, test, full_maps=True)
-    assert page_data(tmp_path / "report.html")["display"] == {"width": 775, "height": 525, "factor": 4}
+    display = page_data(tmp_path / "report.html")["display"]
+    assert display == {"width": 775, "height": 525, "factor": 4, "difference_scale": 0.0}  # the same pixels
     png = (tmp_path / "pvalue_map.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and int.from_bytes(png[16:20], "big") == 3100  # full resolution
     assert (tmp_path / "overlay.png").is_file()

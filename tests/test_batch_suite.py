@@ -135,6 +135,25 @@ def test_statuses_and_exit_codes():
     assert suites.exit_code([outcome("failed", expect="biased", verdict="no_evidence")]) == 3
 
 
+def test_the_dashboard_shows_failing_cases_first(tmp_path):
+    statuses = ["passed", "skipped", "inconclusive", "failed", "error", "passed"]
+    results = []
+    for number, status in enumerate(statuses):
+        result = outcome(status, verdict="biased" if status == "failed" else None)
+        result.case = suites.Case(name=f"c{number}", scene="corner")
+        results.append(result)
+    suite = suites.Suite(tmp_path / "s.toml", "s", 0.01, tuple(r.case for r in results))
+    suites.write_outputs(suite, results, tmp_path / "out", tmp_path / "refs")
+    page = (tmp_path / "out" / "index.html").read_text()
+    shown = re.findall(r'<tr class="case" data-status="(\w+)"><td><b>(\w+)</b>', page)
+    assert shown == [("failed", "c3"), ("error", "c4"), ("inconclusive", "c2"), ("passed", "c0"), ("passed", "c5"),
+                     ("skipped", "c1")]  # fmt: skip
+    # JUnit and summary.json keep the suite's order.
+    assert [c["case"] for c in json.loads((tmp_path / "out" / "summary.json").read_text())["cases"]] == [
+        f"c{n}" for n in range(6)
+    ]
+
+
 def test_junit_xml_counts_each_kind():
     results = [outcome("passed", verdict="no_evidence"), outcome("failed", verdict="biased"), outcome("skipped"),
                outcome("error"), outcome("inconclusive", verdict="inconclusive")]  # fmt: skip
@@ -264,9 +283,14 @@ def test_the_dashboard_in_a_browser(blessed, tmp_path):
         assert page.locator("#title").inner_text() == "Suite small: a case failed"
         rows = page.locator("tr.case")
         assert rows.count() == 2 and rows.first.get_attribute("data-status") == "failed"
-        # Every thumbnail decodes (reference, test, p-value map of both cases).
+        # Every thumbnail decodes: the two renders (each with the other side under it), their difference and the
+        # p-value map of both cases.
         sizes = page.evaluate("[...document.images].map(i => i.complete && i.naturalWidth)")
-        assert len(sizes) == 6 and all(sizes)
+        assert len(sizes) == 12 and all(sizes)
+        shown = rows.first.locator(".ab").first
+        assert shown.locator(".other").is_hidden()
+        shown.hover()  # A/B: the other side under the pointer
+        assert shown.locator(".other").is_visible() and shown.locator(".shown").is_hidden()
         page.locator("a", has_text="report").first.click()
         page.wait_for_function("document.body.dataset.drawn === 'yes'", timeout=20000)
         assert page.locator("#verdict").inner_text() == "Biased"

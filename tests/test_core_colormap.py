@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
+import welch_core as wc
 from welch_core import (
     MAP_MODES,
     TileStats,
@@ -161,3 +162,18 @@ def test_histogram_counts_and_expected_level():
 def test_histogram_bad_bins(bins):
     with pytest.raises(WelchInputError, match=re.escape(f"`bins` must be a positive integer, got {bins!r}")):
         histogram([0.5], bins=bins)
+
+
+def test_difference_picture_is_signed_and_scaled_to_the_reference():
+    ref = np.full((4, 6, 3), 2.0)
+    test = ref.copy()
+    test[0, 0] = 2.2  # brighter by 10 % of the mean
+    test[3, 5] = 1.8  # darker by as much
+    rgb, limit = wc.difference_picture(ref, test, share=1.0)
+    assert limit == pytest.approx(0.1)  # the ends stand for +-0.2, a tenth of the mean brightness 2
+    np.testing.assert_allclose(rgb[0, 0], [0.7, 0.1, 0.1], atol=1e-6)  # red: the test side brighter
+    np.testing.assert_allclose(rgb[3, 5], [0.1, 0.25, 0.7], atol=1e-6)  # blue: darker
+    np.testing.assert_array_equal(rgb[1, 1], [1.0, 1.0, 1.0])  # white: equal
+    equal, none = wc.difference_picture(ref, ref)
+    assert none == 0.0 and np.all(equal == 1.0)
+    assert wc.difference_picture(ref, ref[:2]) == (None, 0.0)

@@ -73,8 +73,16 @@ def test_the_canvas_is_drawn_and_layers_switch(page):
     assert len(legends) == 5
     page.select_option("#layer", "none")
     on_test = page.evaluate("document.getElementById('canvas').toDataURL()")
-    page.select_option("#base", "difference")  # computed in the page from the two pictures
+    assert page.locator("#difference-bar").is_hidden()
+    page.select_option("#base", "difference")  # test - reference per pixel, with its scale bar
     assert page.evaluate("document.getElementById('canvas').toDataURL()") != on_test
+    assert page.locator("#difference-bar").is_visible()
+    assert "brighter (of the reference's mean brightness" in page.locator("#difference-text").inner_text()
+    page.click("#flip")  # A/B: from anything to the test side, then between the sides
+    assert page.evaluate("baseSelect.value") == "test"
+    page.click("#flip")
+    assert page.evaluate("baseSelect.value") == "reference" and page.locator("#difference-bar").is_hidden()
+    assert page.evaluate("document.getElementById('canvas').toDataURL()") != on_test  # the other side drawn
     page.select_option("#base", "test")
     page.select_option("#layer", "min")
 

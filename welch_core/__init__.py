@@ -16,6 +16,7 @@ import importlib
 _EXPORTS = {
     "MAP_MODES": "colormap",
     "colorize": "colormap",
+    "difference_picture": "colormap",
     "exposure": "colormap",
     "shrink": "colormap",
     "histogram": "colormap",

@@ -15,6 +15,7 @@ from .errors import WelchInputError
 __all__ = [
     "MAP_MODES",
     "colorize",
+    "difference_picture",
     "exposure",
     "histogram",
     "map_values",
@@ -84,6 +85,24 @@ def colorize(values: npt.ArrayLike) -> np.ndarray:
     rgb = _VIRIDIS[lo] * (1.0 - frac) + _VIRIDIS[lo + 1] * frac
     rgb[np.isnan(v)] = EXCLUDED_GREY
     return rgb.astype(np.float32)
+
+
+def difference_picture(reference: npt.ArrayLike, test: npt.ArrayLike, share: float = 0.95):
+    """The signed per-pixel difference test - reference of two mean renders (channels averaged), as RGB in a
+    diverging map (blue: test darker, white: equal, red: test brighter), and the difference its ends stand for,
+    relative to the reference's mean brightness: the `share` quantile of |difference| (so a few fireflies don't
+    wash the rest out), for the scale bar. (None, 0.0) where the images can't be compared."""
+    ref = np.asarray(reference, dtype=np.float64)[..., :3].mean(axis=-1)
+    tst = np.asarray(test, dtype=np.float64)[..., :3].mean(axis=-1)
+    if ref.shape != tst.shape:
+        return None, 0.0
+    diff = np.where(np.isfinite(tst - ref), tst - ref, 0.0)
+    limit = float(np.quantile(np.abs(diff), share)) if diff.size else 0.0
+    brightness = float(np.mean(np.abs(ref[np.isfinite(ref)]))) if np.isfinite(ref).any() else 0.0
+    t = np.clip(diff / limit, -1.0, 1.0) if limit > 0 else np.zeros_like(diff)
+    ends = np.where((t >= 0)[..., None], np.array([0.7, 0.1, 0.1]), np.array([0.1, 0.25, 0.7]))
+    rgb = 1.0 + (ends - 1.0) * np.abs(t)[..., None]
+    return rgb.astype(np.float32), (limit / brightness if brightness > 0 else 0.0)
 
 
 def map_values(pvalues: npt.ArrayLike, mode: str = "min", channel: int | None = None, qvalues=None) -> np.ndarray:

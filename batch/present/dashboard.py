@@ -1,6 +1,7 @@
-"""The dashboard of a suite run: one self-contained ``index.html`` with a row per case and device (thumbnails of
-the reference and the test side and the p-value map, the verdict, the largest effect with its interval, passes
-and seconds spent) linking to each case's full report."""
+"""The dashboard of a suite run: one self-contained ``index.html`` with a row per case and device, failing ones
+first (thumbnails of the reference and the test side, hovering one shows the other, their per-pixel difference
+and the p-value map; the verdict, the largest effect with its interval, passes and seconds spent) linking to each
+case's full report."""
 
 from __future__ import annotations
 
@@ -15,6 +16,9 @@ from .._siblings import welch_core as wc
 from . import fmt
 
 THUMBNAIL = 96  # pixels, the longer side
+
+#: The order of the rows: what needs a look first (a stable sort: the suite's order within each).
+FIRST = ("failed", "error", "inconclusive", "passed", "skipped")
 
 _STATUS_COLOURS = {
     "passed": "#1b7f3b",
@@ -33,6 +37,8 @@ table{border-collapse:collapse;background:#fff;border:1px solid #ddd}
 td,th{padding:6px 10px;text-align:left;vertical-align:middle;border-bottom:1px solid #eee}
 th{font-weight:600;background:#fafafa}
 img{width:96px;height:96px;object-fit:contain;image-rendering:pixelated;background:#777;display:block}
+.ab .other,.ab:hover .shown{display:none}
+.ab:hover .other{display:block}
 .status{font-weight:600;text-transform:uppercase;font-size:12px;letter-spacing:.04em}
 .num{text-align:right;font-variant-numeric:tabular-nums}
 .muted{color:#777;font-size:12px;max-width:340px}
@@ -43,7 +49,8 @@ img{width:96px;height:96px;object-fit:contain;image-rendering:pixelated;backgrou
 def write_dashboard(path: Path, summary: dict, outcomes, references: list[Path]) -> None:
     """Write the dashboard of `outcomes` (``batch.decide.suite.CaseResult``) with `summary` (``summary.json``'s
     content) and each case's reference statistics file."""
-    rows = "".join(_row(o, record, ref) for o, record, ref in zip(outcomes, summary["cases"], references, strict=True))
+    rows = sorted(zip(outcomes, summary["cases"], references, strict=True), key=lambda row: FIRST.index(row[0].status))
+    rows = "".join(_row(o, record, ref) for o, record, ref in rows)
     counts = "".join(
         f'<span style="color:{_STATUS_COLOURS[k]}">{v} {k}</span>' for k, v in summary["counts"].items() if v
     )
@@ -59,10 +66,12 @@ def write_dashboard(path: Path, summary: dict, outcomes, references: list[Path])
 <div class="muted">alpha {summary["alpha"]:g} per case · references {html.escape(_near(summary["refs"], path))} ·
 {html.escape(_near(summary["file"], path))}</div></header>
 <main><table id="cases"><thead><tr><th>case</th><th>device</th><th>status</th><th>reference</th><th>test</th>
-<th>p-value map</th><th>verdict</th><th>difference</th><th class="num">passes</th>
+<th>test − reference</th><th>p-value map</th><th>verdict</th><th>difference</th><th class="num">passes</th>
 <th class="num">seconds</th><th>report</th></tr></thead><tbody>{rows}</tbody></table>
-<p class="muted">p-value map: log scale, yellow for small p (1e-12 and below), violet for p near 1, grey where no
-tile-channel could be tested. Thumbnails share the reference's exposure.</p></main></body></html>
+<p class="muted">Failing cases first. Hover a render to see the other side (A/B). Thumbnails share the reference's
+exposure; the difference is per pixel, blue where the test side is darker and red where brighter, its ends the
+±value shown below it (of the reference's mean brightness). p-value map: log scale, yellow for small p (1e-12
+and below), violet for p near 1, grey where no tile-channel could be tested.</p></main></body></html>
 """
     wc.formats.atomic_write(path, lambda f: f.write(page.encode("utf-8")))
 
@@ -77,11 +86,18 @@ def _near(target: str, page: Path) -> str:
 
 def _row(outcome, record: dict, reference: Path) -> str:
     colour = _STATUS_COLOURS[outcome.status]
-    pictures = _thumbnails(outcome, reference)
-    cells = "".join(
-        f'<td><img alt="{name}" src="{url}"></td>' if url else f'<td class="muted">{"—"}</td>'
-        for name, url in zip(("reference", "test", "p-value map"), pictures, strict=True)
-    )
+    ref, test, difference_url, scale, pmap = _thumbnails(outcome, reference)
+    cells = "".join(_ab(shown, other, name) for shown, other, name in ((ref, test, "reference"), (test, ref, "test")))
+    if difference_url:
+        scale_text = (
+            f'<div class="muted">±{100 * scale:.2g} %</div>'
+            if scale < 0.1
+            else f'<div class="muted">±{100 * scale:.0f} %</div>'
+        )
+        cells += f'<td><img alt="test − reference" src="{difference_url}">{scale_text}</td>'
+    else:
+        cells += '<td class="muted">—</td>'
+    cells += f'<td><img alt="p-value map" src="{pmap}"></td>' if pmap else '<td class="muted">—</td>'
     difference = _difference_cell(record)
     report = f'<a href="{html.escape(record["report"])}">report</a>' if record["report"] else ""
     why = f'<div class="muted">{html.escape(outcome.case.why)}</div>' if outcome.case.why else ""
@@ -110,10 +126,21 @@ def _difference_cell(record: dict) -> str:
     return "".join(rows) or "—"
 
 
-def _thumbnails(outcome, reference: Path) -> list[str | None]:
-    """Data URLs of the reference's and the test side's mean renders and of the p-value map (None: missing)."""
+def _ab(shown: str | None, other: str | None, name: str) -> str:
+    """A render's cell: the other side's render under the pointer (A/B), when there is one."""
+    if not shown:
+        return '<td class="muted">—</td>'
+    if not other:
+        return f'<td><img alt="{name}" src="{shown}"></td>'
+    return (f'<td><span class="ab" title="{name}; hover: the other side"><img class="shown" alt="{name}" '
+            f'src="{shown}"><img class="other" alt="the other side" src="{other}"></span></td>')  # fmt: skip
+
+
+def _thumbnails(outcome, reference: Path) -> tuple:
+    """Data URLs of the reference's and the test side's mean renders, of their difference (and its scale) and of
+    the p-value map (None: missing)."""
     if outcome.folder is None:
-        return [None, None, None]
+        return None, None, None, 0.0, None
     folder = Path(outcome.folder)
     means = []
     for path in (reference, folder / "test.npz"):
@@ -124,13 +151,14 @@ def _thumbnails(outcome, reference: Path) -> list[str | None]:
         means.append(None if preview is None or not run.n else wc.shrink(preview, THUMBNAIL) / np.float32(run.n))
     scale = wc.exposure(means[0]) if means[0] is not None else None
     urls: list[str | None] = [None if m is None else _png(wc.tonemap(m, scale=scale)) for m in means]
+    difference, limit = (None, 0.0) if any(m is None for m in means) else wc.difference_picture(*means)
+    difference_url = None if difference is None else _png(difference)
     try:
         p = wc.read_exr(folder / "pvalues.exr").astype(float)
     except (OSError, wc.WelchInputError):
-        return [*urls, None]
+        return *urls, difference_url, limit, None
     p[p < 0] = np.nan  # the report writes untested tile-channels as -1
-    urls.append(_png(wc.colorize(wc.colormap.map_values(p, "log10"))))
-    return urls
+    return *urls, difference_url, limit, _png(wc.colorize(wc.colormap.map_values(p, "log10")))
 
 
 def _png(rgb: np.ndarray) -> str:

@@ -240,7 +240,13 @@ def _pictures(c: wc.Comparison, ref: wc.TileStats, test: wc.TileStats, previews=
         for name, m in zip(("reference", "test"), means, strict=True)
         if m is not None
     }
-    return {"pictures": pictures, "display": {"width": width, "height": height, "factor": factor}}
+    display = {"width": width, "height": height, "factor": factor, "difference_scale": None}
+    if len(known) == 2:
+        rgb, limit = wc.difference_picture(*means)
+        if rgb is not None:
+            pictures["difference"] = _png(rgb)
+            display["difference_scale"] = limit  # the map's ends, relative to the reference's mean brightness
+    return {"pictures": pictures, "display": display}
 
 
 def _png(rgb: np.ndarray) -> str:
