@@ -39,6 +39,8 @@ FULL = RenderJob(
     blender="/opt/blender-4.5/blender",
     lobes=("diffuse", "glossy", "lightgroups"),
 )
+#: The same job rendered by another release's bpy instead of a Blender binary (the two exclude each other).
+FULL_PYTHON = dataclasses.replace(FULL, blender=None, python="/root/.cache/welch-bias/bpy/4.5.4/bin/python")
 
 
 def parse(argv: list[str]) -> RenderJob:
@@ -51,6 +53,7 @@ def parse(argv: list[str]) -> RenderJob:
     "job",
     [
         FULL,
+        FULL_PYTHON,
         RenderJob(out="a.npz", seeds=range(0, 64)),
         RenderJob(out="a.npz", seeds=[5], scene="corner", resolution=(64, 64)),
         dataclasses.replace(FULL, blend=None, scene="glossy", blend_scene=None, blender=None, seeds=range(10, 20)),
@@ -63,7 +66,8 @@ def test_every_field_round_trips_through_argv(job):
 
 def test_every_field_is_covered():
     """A new field without a command-line form would be lost between processes."""
-    changed = {f.name for f in dataclasses.fields(RenderJob) if getattr(FULL, f.name) != f.default}
+    changed = {f.name for f in dataclasses.fields(RenderJob) for job in (FULL, FULL_PYTHON)
+               if getattr(job, f.name) != f.default}  # fmt: skip
     assert changed == {f.name for f in dataclasses.fields(RenderJob)} - {"scene"}
 
 

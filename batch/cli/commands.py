@@ -107,8 +107,14 @@ def build_parser() -> argparse.ArgumentParser:
                                                                      "(as render --set)"})  # fmt: skip
     k.add_argument("--test-blend", metavar="OTHER.blend", help="the test side's scene file (default: SCENE.blend)")
     k.add_argument("--test-blend-scene", metavar="NAME", help="which scene of the test side's file")
-    add_options(k, ("blender",), helps={"blender": "Blender executable of the reference side (default: bpy)"})
+    helps = {
+        "blender": "Blender executable of the reference side (default: bpy)",
+        "python": "a Python with another release's bpy module for the reference side (python -m batch bpy VERSION "
+        "makes one)",
+    }
+    add_options(k, ("blender", "python"), helps=helps)
     k.add_argument("--test-blender", metavar="PATH", help="Blender executable of the test side (default: --blender)")
+    k.add_argument("--test-python", metavar="PATH", help="the test side's Python with a bpy module (default: --python)")
     k.add_argument(
         "--tolerance",
         type=tolerance_or_off,
@@ -270,6 +276,7 @@ def build_parser() -> argparse.ArgumentParser:
         a.add_argument("suite_file", metavar="SUITE", help="a suite file (.toml), or `builtin`")
         a.add_argument("--refs", metavar="DIR", help="the references' folder (default for `builtin`: shipped ones)")
         a.add_argument("--blender", metavar="PATH", help="render with this Blender executable instead of bpy")
+        a.add_argument("--python", metavar="PATH", help="render with this Python's bpy module (another release)")
         a.add_argument("--device", choices=DEVICES, help="every case on this device instead of its own")
         a.add_argument("--filter", nargs="+", metavar="PATTERN", help="only the cases whose names match")
         a.add_argument("--json-progress", action="store_true", help="one JSON line per event on stdout")
@@ -296,6 +303,18 @@ def build_parser() -> argparse.ArgumentParser:
                 help="start the test seeds N after the reference's (default 0: a rerun gives the same answer; a "
                 "nightly run can pass a new N for new passes)",
             )
+
+    r = sub.add_parser(
+        "bpy",
+        help="a Python with another Cycles release's bpy module, for --python (made once, then cached)",
+        description="Make (once) and print the Python of a virtual environment with bpy==VERSION, to render with "
+        "that release: `render --python`, `check --python/--test-python`, `suite run --python`. Each takes about "
+        "1 GB on disk, in $WELCH_BPY_CACHE (default ~/.cache/welch-bias/bpy). Releases on the package index for "
+        "Python 3.11: 4.2.x LTS, 4.3, 4.4, 4.5.x LTS, 5.0.x.",
+        epilog='Example: python -m batch check --scene corner --python "$(python -m batch bpy 4.5.4)" --out c/',
+    )
+    r.add_argument("version", nargs="?", metavar="VERSION", help="the release, e.g. 4.5.4")
+    r.add_argument("--list", action="store_true", help="list the cached releases, their Pythons and sizes")
 
     d = sub.add_parser("demo", help="the built-in corner scene against a biased variant (walls 0.21 instead of 0.2)")
     d.add_argument("--out", default=os.path.join("out", "demo"), metavar="REPORT_DIR")
@@ -385,7 +404,7 @@ def cmd_render(args) -> int:
             render_distributed(job, progress, where, chunk=args.chunk)
     elif args.chunk:
         raise BatchError("--chunk goes with --workers or --scheduler")
-    elif job.blender:
+    elif job.blender or job.python:
         from ..jobs.side import run_job
 
         run_job(job, progress)
@@ -545,7 +564,8 @@ def cmd_suite(args) -> int:
         print(line, file=sys.stderr if args.json_progress else sys.stdout, flush=True)
 
     if args.suite_command == "bless":
-        done = suites.bless(suite, cases, refs, progress, args.force, args.blender, args.device, say, args.missing)
+        done = suites.bless(suite, cases, refs, progress, args.force, args.blender, args.device, say, args.missing,
+                            args.python)  # fmt: skip
         for item in done:
             say(f"{item.case}: {item.status}: {item.message}" + (f" (report: {item.report})" if item.report else ""))
         return Exit.BIASED if any(item.status == "refused" for item in done) else Exit.OK
@@ -563,6 +583,7 @@ def cmd_suite(args) -> int:
         say,
         args.seed_offset,
         (args.workers, args.scheduler),
+        args.python,
     )
     summary = suites.write_outputs(suite, outcomes, out, refs)
     failed = [o.label for o in outcomes if o.status == "failed"]
@@ -573,6 +594,25 @@ def cmd_suite(args) -> int:
     )
     say(f"dashboard: {out / 'index.html'}")
     return summary["exit_code"]
+
+
+def cmd_bpy(args) -> int:
+    from ..jobs import releases
+
+    if args.list:
+        found = releases.installed()
+        for r in found:
+            print(f"{r.version}\t{r.python}\t{r.banner}\t{r.size / 1e9:.1f} GB")
+        if not found:
+            print(
+                f"no bpy release in {releases.cache_folder()} (python -m batch bpy VERSION makes one)", file=sys.stderr
+            )
+        return Exit.OK
+    if args.version is None:
+        raise BatchError("give a release (python -m batch bpy 4.5.4), or --list")
+    python = releases.ensure(args.version, say=lambda line: print(line, file=sys.stderr, flush=True))
+    print(python)
+    return Exit.OK
 
 
 def cmd_demo(args) -> int:
@@ -591,5 +631,6 @@ COMMANDS = {
     "merge": cmd_merge,
     "lint": cmd_lint,
     "suite": cmd_suite,
+    "bpy": cmd_bpy,
     "demo": cmd_demo,
 }

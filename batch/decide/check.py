@@ -90,6 +90,7 @@ def sides_identical(reference: RenderJob, test: RenderJob) -> bool:
         "sampling_pattern",
         "overrides",
         "blender",
+        "python",
         "spp",
     )
     same = all(getattr(reference, f) == getattr(test, f) for f in fields)
@@ -417,7 +418,12 @@ def check_job_from_args(args) -> CheckJob:
             raise BatchError(f"{option} {path}: no such file")
     max_passes = None if args.max_seconds is not None else (args.max_passes or DEFAULT_MAX_PASSES)
     count = max_passes or MAX_SEEDS_FOR_SECONDS
-    same_build = (args.test_blender or args.blender) == args.blender
+    if (args.blender or args.test_blender) and (args.python or args.test_python):
+        raise BatchError("give the builds as Blender binaries (--blender, --test-blender) or as Pythons with bpy "
+                         "(--python, --test-python), not both")  # fmt: skip
+    same_build = (args.test_blender or args.blender) == args.blender and (args.test_python or args.python) == (
+        args.python
+    )
     paired = same_build and not args.unpaired
     ref_seeds = range(count)
     test_seeds = ref_seeds if paired else range(UNPAIRED_SEEDS, UNPAIRED_SEEDS + count)
@@ -439,6 +445,7 @@ def check_job_from_args(args) -> CheckJob:
         scene=args.scene,
         blend_scene=args.blend_scene,
         blender=args.blender,
+        python=args.python,
         **common,
     )
     test = RenderJob(
@@ -448,6 +455,7 @@ def check_job_from_args(args) -> CheckJob:
         scene=None if args.test_blend else args.scene,
         blend_scene=args.test_blend_scene or (None if args.test_blend else args.blend_scene),
         blender=args.test_blender or args.blender,
+        python=args.test_python or args.python,
         overrides=tuple(args.overrides),
         **common,
     )

@@ -91,9 +91,17 @@ class Case:
     planted: str | None = None  # a change of the case's feature that it must find (documentation, benchmarks)
 
     def job(
-        self, out: str, seeds, device: str, blender: str | None, extra: tuple[str, ...] = (), test: bool = False
+        self,
+        out: str,
+        seeds,
+        device: str,
+        blender: str | None,
+        extra: tuple[str, ...] = (),
+        test: bool = False,
+        python: str | None = None,
     ) -> RenderJob:
-        """The render job of one side of this case (`test`: the test side)."""
+        """The render job of one side of this case (`test`: the test side), rendered with bpy, or with `blender`
+        (a binary) or `python` (another release's bpy)."""
         return RenderJob(
             out=out,
             seeds=tuple(seeds),
@@ -107,6 +115,7 @@ class Case:
             sampling_pattern=(self.test_sampling_pattern or self.sampling_pattern) if test else self.sampling_pattern,
             overrides=self.overrides + tuple(extra),
             blender=blender,
+            python=python,
             checkpoint_every=max(self.passes, 1),
         )
 
@@ -269,7 +278,7 @@ class Blessed:
 
 
 def bless(suite: Suite, cases: list[Case], refs: Path, progress_factory, force: bool = False, blender=None,
-          device: str | None = None, say=print, missing: bool = False) -> list[Blessed]:  # fmt: skip
+          device: str | None = None, say=print, missing: bool = False, python=None) -> list[Blessed]:  # fmt: skip
     """Render the reference of each case into `refs`. A case that has one already gets a new render on new
     seeds, compared with the stored one: where they differ significantly the old one stays (unless `force`), and
     the comparison's report is kept next to it: a silent re-bless is how thresholds creep. With `missing`, only
@@ -289,7 +298,7 @@ def bless(suite: Suite, cases: list[Case], refs: Path, progress_factory, force: 
         fresh.unlink(missing_ok=True)
         chosen = device or case.devices[0]
         say(f"suite bless: {number}/{len(cases)} {case.name} ({case.passes} passes on {chosen})")
-        job = case.job(str(fresh), range(first, first + case.passes), chosen, blender)
+        job = case.job(str(fresh), range(first, first + case.passes), chosen, blender, python=python)
         start = time.perf_counter()
         run_job(job, progress_factory(case.passes))
         seconds = time.perf_counter() - start
@@ -391,7 +400,7 @@ def exit_code(outcomes: list[CaseResult]) -> int:
 
 def run_suite(suite: Suite, cases: list[Case], refs: Path, out: Path, progress_factory, blender=None,
               device: str | None = None, overrides: tuple[str, ...] = (), resume: bool = False,
-              say=print, seed_offset: int = 0, cluster=(None, None)) -> list[CaseResult]:  # fmt: skip
+              say=print, seed_offset: int = 0, cluster=(None, None), python=None) -> list[CaseResult]:  # fmt: skip
     """Decide every case on every device (its own, or `device` for all) against its reference in `refs`;
     `overrides` go to every case's test side (a planted change). The test side's seeds start `seed_offset`
     after the reference's last one: the same run gives the same answer, another offset draws new passes.
@@ -411,7 +420,7 @@ def run_suite(suite: Suite, cases: list[Case], refs: Path, out: Path, progress_f
         for number, (case, dev) in enumerate(runs, 1):
             say(f"suite run: {number}/{len(runs)} {case.name} on {dev}")
             outcome = _run_case(
-                suite, case, dev, refs, out, progress_factory, blender, overrides, resume, seed_offset, where
+                suite, case, dev, refs, out, progress_factory, (blender, python), overrides, resume, seed_offset, where
             )
             say(f"  {outcome.status}: {outcome.message}")
             outcomes.append(outcome)
@@ -419,8 +428,9 @@ def run_suite(suite: Suite, cases: list[Case], refs: Path, out: Path, progress_f
 
 
 def _run_case(
-    suite, case, device, refs, out, progress_factory, blender, overrides, resume, seed_offset, where
+    suite, case, device, refs, out, progress_factory, build, overrides, resume, seed_offset, where
 ) -> CaseResult:
+    blender, python = build  # the test side's: a Blender binary or a Python with bpy (None, None: this bpy)
     folder = out / case.name / device
     try:
         reference = wc.load_stats(reference_path(refs, case), pixels=False)
@@ -434,7 +444,7 @@ def _run_case(
     count = budget or 100_000
     job = CheckJob(
         reference=case.job(str(reference_path(refs, case)), reference.seeds, reference.info.device or "CPU", None),
-        test=case.job(str(folder / "test.npz"), range(first, first + count), device, blender, overrides, test=True),
+        test=case.job(str(folder / "test.npz"), range(first, first + count), device, blender, overrides, True, python),
         out=str(folder),
         max_passes=budget,
         max_seconds=case.seconds,

@@ -54,7 +54,8 @@ class RenderJob:
 
     Exactly one of `blend` (a .blend file) and `scene` (a built-in scene) names the scene; neither means the file
     the running Blender has open. `blender`, if set, is the Blender executable that renders the job (the job is
-    handed to it as arguments); otherwise the job renders in this process through bpy.
+    handed to it as arguments), and `python` a Python interpreter whose environment has some release's bpy module
+    (the job runs in it as ``python -m batch render``); otherwise the job renders in this process through bpy.
     """
 
     out: str
@@ -73,6 +74,7 @@ class RenderJob:
     checkpoint_every: int = 8
     blender: str | None = None
     lobes: tuple[str, ...] = ()  # light components and light groups accumulated as layers (batch.lobes)
+    python: str | None = None  # a Python whose environment has a bpy module (another release) to render in
 
     def __post_init__(self):
         object.__setattr__(self, "seeds", tuple(self.seeds))
@@ -102,6 +104,8 @@ class RenderJob:
             if self.tile > min(self.resolution):
                 width, height = self.resolution
                 raise BatchError(f"--tile {self.tile} is larger than the image {width}x{height}")
+        if self.blender is not None and self.python is not None:
+            raise BatchError(f"give --blender or --python, not both ({self.blender}, {self.python})")
         if self.device not in DEVICES:
             raise BatchError(f"--device must be one of {', '.join(DEVICES)}, got {self.device!r}")
         if self.on_nan not in ON_NAN:
@@ -132,6 +136,7 @@ class RenderJob:
             checkpoint_every=args.checkpoint_every,
             blender=args.blender,
             lobes=args.lobes,
+            python=getattr(args, "python", None),
         )
 
     def to_argv(self) -> list[str]:
@@ -159,6 +164,8 @@ class RenderJob:
             argv += ["--blender", self.blender]
         if self.lobes:
             argv += ["--lobes", ",".join(self.lobes)]
+        if self.python is not None:
+            argv += ["--python", self.python]
         return [*argv, "--out", self.out]
 
 
@@ -221,7 +228,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     add_options(
         parser,
-        ("tile", "resolution", "device", "sampling_pattern", "overrides", "lobes", "blender"),
+        ("tile", "resolution", "device", "sampling_pattern", "overrides", "lobes", "blender", "python"),
         defaults={"tile": 32, "device": "CPU", "lobes": ()},
         helps={"tile": "tile edge in pixels", "resolution": f"override the resolution (at most {MAX_RESOLUTION})"},
     )

@@ -70,6 +70,11 @@ def job_command(
         argv = [job.blender, "-b", *opened, "--python-exit-code", str(int(Exit.INTERNAL))]
         argv += ["--python", str(ENTRY_SCRIPT), "--", "render", *child.replace(blend=None).to_argv(), *mode]
         return Command(argv, env)
+    if job.python:
+        # Another environment's Python: the tool's code reaches it on PYTHONPATH, and nothing of this one's.
+        env.pop("PYTHONHOME", None)
+        env["PYTHONPATH"] = str(ROOT)
+        return Command([job.python, "-m", "batch", "render", *job.replace(python=None).to_argv(), *mode], env)
     paths = [str(ROOT), *python_paths, *filter(None, env.get("PYTHONPATH", "").split(os.pathsep))]
     env["PYTHONPATH"] = os.pathsep.join(dict.fromkeys(paths))
     return Command([python, "-m", "batch", "render", *child.to_argv(), *mode], env)
@@ -99,6 +104,56 @@ def blender_version(path: str) -> str:
         said = " ".join(done.stdout.split())[:80] or f"nothing, exit code {done.returncode}"
         raise BatchError(f"--blender {path} is not Blender: --version printed {said!r}")
     return banner
+
+
+#: The oldest bpy module release the tool drives (the Python API of its render settings and light groups).
+OLDEST_BPY = (4, 2)
+
+#: What `bpy_version` runs in the interpreter: its Python and bpy versions, or why there is no bpy.
+_PROBE = """
+import sys
+print("python", sys.version.split()[0])
+try:
+    import bpy
+except Exception as exc:
+    print("no-bpy", type(exc).__name__, exc)
+else:
+    print("bpy", ".".join(map(str, bpy.app.version)), bpy.app.build_hash.decode() if bpy.app.build_hash else "")
+"""
+
+
+@functools.cache
+def bpy_version(path: str) -> str:
+    """The bpy release of the Python interpreter `path` (``bpy 4.5.4 (build a1b2c3)``), checked once per path:
+    BatchError in one line when `path` can't be run, hangs, is not a Python, has no bpy module, or one older than
+    `OLDEST_BPY`."""
+    try:
+        done = subprocess.run([path, "-c", _PROBE], capture_output=True, text=True, errors="replace",
+                              timeout=VERSION_TIMEOUT, env={k: v for k, v in os.environ.items()
+                                                            if k not in ("PYTHONPATH", "PYTHONHOME")})  # fmt: skip
+    except FileNotFoundError:
+        raise BatchError(f"--python {path}: no such program") from None
+    except PermissionError:
+        raise BatchError(f"--python {path}: not executable") from None
+    except subprocess.TimeoutExpired:
+        raise BatchError(f"--python {path} did not answer within {VERSION_TIMEOUT:.0f} s") from None
+    except OSError as exc:
+        raise BatchError(f"--python {path}: can't run it ({exc.strerror or exc})") from None
+    said = dict(line.split(" ", 1) for line in done.stdout.splitlines() if " " in line)
+    if "python" not in said:
+        text = " ".join((done.stdout + done.stderr).split())[:80] or f"nothing, exit code {done.returncode}"
+        raise BatchError(f"--python {path} is not a Python interpreter: it answered {text!r}")
+    if "no-bpy" in said:
+        raise BatchError(
+            f"--python {path} (Python {said['python']}) has no bpy module ({said['no-bpy']}): install one into its "
+            "environment (pip install bpy==VERSION), or make one with python -m batch bpy VERSION"
+        )
+    version, _, build = said.get("bpy", "").partition(" ")
+    numbers = tuple(int(x) for x in version.split(".") if x.isdigit())
+    if not numbers or numbers[:2] < OLDEST_BPY:
+        oldest = ".".join(map(str, OLDEST_BPY))
+        raise BatchError(f"--python {path} has bpy {version or '?'}: the tool drives bpy {oldest} and later")
+    return f"bpy {version}" + (f" (build {build})" if build else "")
 
 
 class JobProcess:

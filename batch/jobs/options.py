@@ -219,6 +219,15 @@ OPTIONS = {
             metavar="PATH",
         ),  # fmt: skip
         Option(
+            "python",
+            "--python",
+            None,
+            text,
+            "render with this Python interpreter, whose environment has another release's bpy module (python -m "
+            "batch bpy VERSION makes one); its version and build are recorded",
+            metavar="PATH",
+        ),  # fmt: skip
+        Option(
             "max_passes",
             "--max-passes",
             "passes",

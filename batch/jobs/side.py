@@ -22,7 +22,7 @@ from .._siblings import welch_core as wc
 from ..errors import BatchError
 from . import protocol
 from .job import RenderJob
-from .launch import JobProcess, blender_version, job_command
+from .launch import JobProcess, blender_version, bpy_version, job_command
 from .protocol import ChunkRequest, Exit
 
 #: Seconds to wait for a render process to end once its requests are closed.
@@ -61,6 +61,8 @@ class Side:
         `--blender` is checked to be Blender first)."""
         if self.job.blender:
             blender_version(self.job.blender)
+        if self.job.python:
+            bpy_version(self.job.python)
         if Path(self.job.out).exists():
             self.passes = wc.load_stats(self.job.out, pixels=False).n
         self.process = JobProcess(job_command(self.job, base_env=self.env, serve=True), requests=True)
@@ -106,7 +108,7 @@ class Side:
             self._failed(code)
         if not self._alive and time.monotonic() - self._started_at > START_TIMEOUT:
             self.stop()
-            who = self.job.blender or "the render process"
+            who = self.job.blender or self.job.python or "the render process"
             raise BatchError(f"{self.name} side: {who} did not start rendering within {START_TIMEOUT:.0f} s "
                              "(WELCH_START_TIMEOUT sets the limit)")  # fmt: skip
         return False
@@ -160,7 +162,7 @@ class Side:
 
     def _failed(self, code: int):
         reason = self.process.error_message() or "no error message"
-        who = self.job.blender or "the render process"
+        who = self.job.blender or self.job.python or "the render process"
         if code == 0:  # ended well without saving what was asked for: not a render process of this tool
             raise BatchError(f"{self.name} side: {who} exited without rendering the passes asked for ({reason})")
         if code == Exit.USAGE:

@@ -1,0 +1,120 @@
+"""Other Cycles releases through their bpy module: `--python PATH` (checked in one line when it is not a Python,
+has no bpy or an old one), the cached environments of `python -m batch bpy VERSION`, and a real render and check
+through bpy 4.5.4 LTS when its environment is there (``./dev test`` makes it; skipped otherwise, with the reason)."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import welch_core as wc
+from batch.errors import BatchError
+from batch.jobs import releases
+from batch.jobs.job import RenderJob
+from batch.jobs.launch import bpy_version, job_command
+from batch.jobs.protocol import Exit
+
+ROOT = Path(__file__).resolve().parents[1]
+#: The second release the tests render with (an LTS with the same Python as the tool's bpy).
+RELEASE = os.environ.get("WELCH_TEST_BPY", "4.5.4")
+
+
+def fake(tmp_path, name: str, body: str) -> str:
+    path = tmp_path / name
+    path.write_text("#!/bin/sh\n" + body)
+    path.chmod(0o755)
+    return str(path)
+
+
+@pytest.mark.parametrize(
+    ("body", "message"),
+    [
+        ("echo hello; exit 0\n", "is not a Python interpreter: it answered 'hello'"),
+        ("exit 3\n", "is not a Python interpreter: it answered 'nothing, exit code 3'"),
+        ('echo "python 3.11.2"; echo "bpy 3.6.5 0123abcd"\n', "has bpy 3.6.5: the tool drives bpy 4.2 and later"),
+    ],
+)
+def test_a_python_that_cannot_render_is_refused_in_one_line(tmp_path, body, message):
+    path = fake(tmp_path, "python", body)
+    with pytest.raises(BatchError) as info:
+        bpy_version(path)
+    assert str(info.value) == f"--python {path} {message}"
+
+
+def test_a_python_without_bpy_says_how_to_get_one():
+    python = shutil.which("python3.11") or "/usr/bin/python3"
+    if not os.path.exists(python) or subprocess.run([python, "-c", "import bpy"], capture_output=True).returncode == 0:
+        pytest.skip(f"no Python without bpy at {python}")
+    with pytest.raises(BatchError, match=r"has no bpy module \(ModuleNotFoundError.*python -m batch bpy VERSION$"):
+        bpy_version(python)
+    with pytest.raises(BatchError, match="no such program"):
+        bpy_version("/nonexistent/python")
+
+
+def test_a_job_runs_in_the_other_python_with_only_the_tools_code_on_its_path():
+    job = RenderJob(out="x.npz", seeds=range(4), scene="corner", python="/opt/bpy-4.5/bin/python")
+    command = job_command(job, base_env={"PYTHONPATH": "/this/venv/site-packages", "PYTHONHOME": "/x", "A": "1"})
+    assert command.argv[:4] == ["/opt/bpy-4.5/bin/python", "-m", "batch", "render"]
+    assert "--python" not in command.argv  # the child renders with its own bpy
+    assert command.env["PYTHONPATH"] == str(ROOT) and "PYTHONHOME" not in command.env and command.env["A"] == "1"
+    with pytest.raises(BatchError, match="give --blender or --python, not both"):
+        job.replace(blender="/opt/blender")
+
+
+def batch(*args, env=None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "batch", *map(str, args)], capture_output=True, text=True,
+                          cwd=ROOT, env=env)  # fmt: skip
+
+
+def test_check_takes_binaries_or_pythons_not_both(tmp_path):
+    done = batch("check", "--scene", "corner", "--blender", "/opt/b", "--test-python", "/opt/p", "--out", tmp_path)
+    assert done.returncode == Exit.USAGE
+    assert "give the builds as Blender binaries (--blender, --test-blender) or as Pythons" in done.stderr
+
+
+def test_the_release_cache(tmp_path):
+    env = {**os.environ, "WELCH_BPY_CACHE": str(tmp_path / "cache")}
+    done = batch("bpy", "4.5", env=env)
+    assert done.returncode == Exit.USAGE
+    assert (
+        done.stderr.strip() == "error: a bpy release is a full version such as 4.5.4 (4.5 would mean 4.5.0), got '4.5'"
+    )
+    done = batch("bpy", "--list", env=env)
+    assert done.returncode == 0 and "no bpy release in" in done.stderr
+    # A broken cached environment is listed as broken, not taken for a release.
+    broken = tmp_path / "cache" / "4.9.9" / "bin"
+    broken.mkdir(parents=True)
+    fake(broken.parent, "bin/python", "exit 1\n")
+    done = batch("bpy", "--list", env=env)
+    assert done.stdout.startswith("4.9.9\t") and "broken: --python" in done.stdout
+
+
+def release_python() -> str:
+    folder = releases.cache_folder() / RELEASE
+    python = releases.python_of(folder)
+    if not python.exists():
+        pytest.skip(f"no bpy {RELEASE} environment in {releases.cache_folder()} (./dev test makes it: "
+                    f"python -m batch bpy {RELEASE})")  # fmt: skip
+    return str(python)
+
+
+@pytest.mark.slow
+def test_render_and_check_through_another_release(tmp_path):
+    python = release_python()
+    out = tmp_path / "old.npz"
+    done = batch("render", "--scene", "corner", "--resolution", 32, 32, "--tile", 16, "--seeds", "0:6", "--spp", 1,
+                 "--python", python, "--out", out)  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    stats = wc.load_stats(out)
+    assert stats.n == 6 and stats.info.renderer_version.startswith(RELEASE) and stats.info.build_hash
+    done = batch("check", "--scene", "corner", "--resolution", 32, 32, "--test-python", python, "--max-passes", 8,
+                 "--out", tmp_path / "check")  # fmt: skip
+    assert done.returncode in (Exit.OK, Exit.INCONCLUSIVE), done.stderr[-2000:]
+    assert f"renderer_version: {wc.load_stats(tmp_path / 'check' / 'reference.npz').info.renderer_version}" in (
+        (tmp_path / "check" / "report.json").read_text()
+    )
