@@ -4,6 +4,7 @@ through bpy 4.5.4 LTS when its environment is there (``./dev test`` makes it; sk
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import subprocess
@@ -118,3 +119,22 @@ def test_render_and_check_through_another_release(tmp_path):
     assert f"renderer_version: {wc.load_stats(tmp_path / 'check' / 'reference.npz').info.renderer_version}" in (
         (tmp_path / "check" / "report.json").read_text()
     )
+
+
+@pytest.mark.slow
+def test_a_release_matrix_and_the_fog_bisect(tmp_path):
+    """The matrix of bpy 4.5.4 and this bpy on the corner scene (no difference there), and the bisect that pins
+    the blue-noise fog difference (docs/findings/blue_noise_volume.md) to the newer of the two: Tabulated Sobol
+    against blue noise in the built-in volume scene at 2 spp a pass, within each release."""
+    release_python()
+    done = batch("matrix", "--scene", "corner", "--resolution", 32, 32, "--builds", RELEASE, "current", "--passes",
+                 16, "--out", tmp_path / "m")  # fmt: skip
+    assert done.returncode == Exit.OK, done.stdout[-2000:] + done.stderr[-2000:]
+    assert f"{RELEASE} vs current: no evidence of bias" in done.stdout
+    assert (tmp_path / "m" / "index.html").is_file() and (tmp_path / "m" / "junit.xml").is_file()
+    done = batch("bisect", "--scene", "volume", "--resolution", 64, 64, "--spp", 2, "--sampling-pattern",
+                 "TABULATED_SOBOL", "--test-sampling-pattern", "BLUE_NOISE", "--builds", RELEASE, "current",
+                 "--passes", 48, "--out", tmp_path / "b")  # fmt: skip
+    assert done.returncode == Exit.OK, done.stdout[-2000:] + done.stderr[-2000:]
+    found = json.loads((tmp_path / "b" / "bisect.json").read_text())
+    assert found["first"] == "current" and [s["pair"]["verdict"] for s in found["steps"]] == ["biased", "no_evidence"]

@@ -408,7 +408,8 @@ def _difference(tested, run, level: float, confidence: float, simultaneous: str,
                 p_value=None) -> Difference:  # fmt: skip
     row, col, ch = index
     low, high = relative_interval(tested, level)
-    rel = tested.result.mean_difference[row, col, ch] / abs(tested.ref_mean[row, col, ch])
+    with np.errstate(divide="ignore", invalid="ignore"):  # a black reference tile: no relative difference
+        rel = tested.result.mean_difference[row, col, ch] / abs(tested.ref_mean[row, col, ch])
     x, y, w, h = run.tile_box(row, col)
     channels = tested.ref_mean.shape[-1]
     return Difference(

@@ -304,6 +304,44 @@ def build_parser() -> argparse.ArgumentParser:
                 "nightly run can pass a new N for new passes)",
             )
 
+    for name, text in (
+        ("matrix", "render one scene with several builds and compare each adjacent pair, and each against a baseline"),
+        ("bisect", "find the first build of an ordered list where a difference appears"),
+    ):
+        m = sub.add_parser(
+            name,
+            help=text,
+            description=text + ". A build is `current` (this bpy), a full bpy release such as 4.5.4 (its "
+            "environment is made once: see `bpy`), or the path of a Blender binary or of a Python with bpy. Every "
+            "build renders the same passes count on its own seeds into --out/<build>.npz (resumed where it "
+            "stopped); each comparison is `compare` of two of them, with its report."
+            + (" Without --test-set/--test-sampling-pattern the difference is against the first build; with them "
+               "it is within each build (the job against the job with the change, on the same seeds). Each step "
+               "is decided at alpha / steps, so the chance of following a difference that is not there is at most "
+               "alpha." if name == "bisect" else " Each cell is decided at alpha on its own."),
+        )  # fmt: skip
+        m.add_argument("blend", nargs="?", metavar="SCENE.blend", help="the scene file")
+        m.add_argument("--scene", help="a built-in scene instead of a file")
+        m.add_argument("--builds", nargs="+", required=True, metavar="BUILD", help="the builds, oldest first")
+        add_options(
+            m, ("blend_scene", "resolution", "device", "sampling_pattern", "overrides"), defaults={"device": "CPU"}
+        )
+        m.add_argument("--spp", type=jobs.positive_int, default=1, help="samples per pixel per pass (default 1)")
+        m.add_argument("--tile", type=jobs.positive_int, default=16, help="tile edge in pixels (default 16)")
+        m.add_argument("--passes", type=jobs.positive_int, default=32, help="passes per build (default 32)")
+        add_options(m, ("alpha",), defaults={"alpha": DEFAULT_ALPHA})
+        m.add_argument("--tolerance", type=tolerance_or_off, default=None, metavar="PERCENT",
+                       help="also say `equivalent` where every finest tile is within it (default: off)")  # fmt: skip
+        if name == "matrix":
+            m.add_argument("--baseline", metavar="BUILD", help="the build every other is compared with (default: "
+                           "the first)")  # fmt: skip
+        else:
+            m.add_argument("--test-set", dest="test_overrides", action="append", default=[], metavar="RNA.PATH=VALUE",
+                           help="the change whose effect is bisected, within each build (repeatable)")  # fmt: skip
+            m.add_argument("--test-sampling-pattern", metavar="PATTERN",
+                           help="the sampling pattern whose effect is bisected, within each build")  # fmt: skip
+        m.add_argument("--out", required=True, metavar="DIR", help="folder for the renders, reports and index.html")
+
     r = sub.add_parser(
         "bpy",
         help="a Python with another Cycles release's bpy module, for --python (made once, then cached)",
@@ -596,6 +634,74 @@ def cmd_suite(args) -> int:
     return summary["exit_code"]
 
 
+def cmd_matrix(args) -> int:
+    from pathlib import Path
+
+    from ..decide import matrix
+    from ..present.junit import junit_xml
+    from ..present.matrix_page import write_bisect_page, write_matrix_page
+    from ..present.progress import Progress
+
+    if (args.blend is None) == (args.scene is None):
+        raise BatchError("give a .blend file or a built-in scene (--scene), one of them")
+    builds = matrix.unique([matrix.build_of(spec) for spec in args.builds])
+    labels = [b.label for b in builds]
+    job = jobs.RenderJob(out="x.npz", seeds=(0,), spp=args.spp, blend=args.blend and os.path.abspath(args.blend),
+                         scene=args.scene, blend_scene=args.blend_scene, tile=args.tile,
+                         resolution=tuple(args.resolution) if args.resolution else None, device=args.device,
+                         sampling_pattern=args.sampling_pattern, overrides=tuple(args.overrides))  # fmt: skip
+    out = Path(args.out)
+    say = lambda line: print(line, flush=True)  # noqa: E731
+    scene = args.scene or os.path.basename(args.blend)
+
+    def progress(total: int) -> Progress:
+        return Progress(total, label=args.command, brief=True)
+
+    if args.command == "matrix":
+        baseline = args.baseline or labels[0]
+        if baseline not in labels:
+            raise BatchError(f"--baseline {baseline} is not one of the builds ({', '.join(labels)})")
+        paths = matrix.render_builds(job, builds, args.passes, out / "renders", progress, say)
+        pairs = matrix.run_matrix(paths, labels, baseline, out, args.alpha, args.tolerance)
+        for pair in pairs:
+            say(f"{pair.reference} vs {pair.test}: {pair.sentence}")
+        results = [pair.result(scene) for pair in pairs]
+        matrix.write_json(out / "matrix.json", {"builds": labels, "baseline": baseline, "pairs": pairs})
+        wc.formats.atomic_write(out / "junit.xml", lambda f: f.write(junit_xml(f"matrix {scene}", results)))
+        note = f"{args.passes} passes a build, alpha {args.alpha:g} a cell, baseline {baseline}"
+        write_matrix_page(out / "index.html", f"Release matrix: {scene}", labels, pairs, note)
+        say(f"matrix: {out / 'index.html'}")
+        verdicts = {p.verdict for p in pairs}
+        return Exit.BIASED if "biased" in verdicts else Exit.INCONCLUSIVE if "inconclusive" in verdicts else Exit.OK
+    changes = {}
+    if args.test_overrides:
+        changes["overrides"] = job.overrides + tuple(args.test_overrides)
+    if args.test_sampling_pattern:
+        changes["sampling_pattern"] = args.test_sampling_pattern
+    within = bool(changes)
+    paths: dict[str, Path] = {}
+
+    def shows(label: str, level: float) -> matrix.Pair:
+        build = builds[labels.index(label)]
+        first = [] if within or label == labels[0] else [builds[0]]
+        blocks = {b.label: k for k, b in enumerate(builds)}
+        paths.update(matrix.render_builds(job, [build, *first], args.passes, out / "renders", progress, say,
+                                          changes if within else None, blocks))  # fmt: skip
+        ref, test = (f"{label}", f"{label}.test") if within else (labels[0], label)
+        if not within and label == labels[0]:  # the first against itself: its two halves
+            return matrix.Pair(label, label, "no_evidence", "the first build is the reference", None, None, "")
+        pair = matrix.compare_pair(paths[ref], paths[test], out / "steps" / label, level, args.tolerance, (ref, test))
+        say(f"{label}: {pair.sentence}")
+        return pair
+
+    found = matrix.bisect(labels, shows, args.alpha)
+    matrix.write_json(out / "bisect.json", {"builds": labels, **found.to_json()})
+    write_bisect_page(out / "index.html", f"Bisect: {scene}", found)
+    say(f"bisect: {found.message}")
+    say(f"bisect: {out / 'index.html'}")
+    return Exit.OK if found.first is not None else Exit.INCONCLUSIVE
+
+
 def cmd_bpy(args) -> int:
     from ..jobs import releases
 
@@ -631,6 +737,8 @@ COMMANDS = {
     "merge": cmd_merge,
     "lint": cmd_lint,
     "suite": cmd_suite,
+    "matrix": cmd_matrix,
+    "bisect": cmd_matrix,
     "bpy": cmd_bpy,
     "demo": cmd_demo,
 }

@@ -153,12 +153,17 @@ def _thumbnails(outcome, reference: Path) -> tuple:
     urls: list[str | None] = [None if m is None else _png(wc.tonemap(m, scale=scale)) for m in means]
     difference, limit = (None, 0.0) if any(m is None for m in means) else wc.difference_picture(*means)
     difference_url = None if difference is None else _png(difference)
+    return *urls, difference_url, limit, pvalue_thumbnail(folder)
+
+
+def pvalue_thumbnail(folder: Path) -> str | None:
+    """The data URL of the p-value map of the report in `folder` (log scale), None where there is none."""
     try:
-        p = wc.read_exr(folder / "pvalues.exr").astype(float)
+        p = wc.read_exr(Path(folder) / "pvalues.exr").astype(float)
     except (OSError, wc.WelchInputError):
-        return *urls, difference_url, limit, None
+        return None
     p[p < 0] = np.nan  # the report writes untested tile-channels as -1
-    return *urls, difference_url, limit, _png(wc.colorize(wc.colormap.map_values(p, "log10")))
+    return _png(wc.colorize(wc.colormap.map_values(p, "log10")))
 
 
 def _png(rgb: np.ndarray) -> str:
