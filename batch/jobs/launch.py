@@ -84,21 +84,28 @@ def job_command(
 VERSION_TIMEOUT = 60.0
 
 
+def _ask(option: str, argv: list[str], asking: str) -> subprocess.CompletedProcess:
+    """Run a program the user named (`option` PATH) to ask it what it is, in one line of BatchError when it can't
+    be run or does not answer within `VERSION_TIMEOUT`. No PYTHONPATH or PYTHONHOME of this Python reaches it."""
+    path = argv[0]
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+    try:
+        return subprocess.run(argv, capture_output=True, text=True, errors="replace", timeout=VERSION_TIMEOUT, env=env)
+    except FileNotFoundError:
+        raise BatchError(f"{option} {path}: no such program") from None
+    except PermissionError:
+        raise BatchError(f"{option} {path}: not executable") from None
+    except subprocess.TimeoutExpired:
+        raise BatchError(f"{option} {path} did not answer {asking} within {VERSION_TIMEOUT:.0f} s") from None
+    except OSError as exc:
+        raise BatchError(f"{option} {path}: can't run it ({exc.strerror or exc})") from None
+
+
 @functools.cache
 def blender_version(path: str) -> str:
     """The version a Blender binary reports (``Blender 4.5.4 LTS``), checked once per path: BatchError in one line
     when `path` can't be run, hangs, crashes, or answers ``--version`` with anything but a Blender's banner."""
-    try:
-        done = subprocess.run([path, "--version"], capture_output=True, text=True, errors="replace",
-                              timeout=VERSION_TIMEOUT, env={**os.environ, "PYTHONPATH": ""})  # fmt: skip
-    except FileNotFoundError:
-        raise BatchError(f"--blender {path}: no such program") from None
-    except PermissionError:
-        raise BatchError(f"--blender {path}: not executable") from None
-    except subprocess.TimeoutExpired:
-        raise BatchError(f"--blender {path} did not answer --version within {VERSION_TIMEOUT:.0f} s") from None
-    except OSError as exc:
-        raise BatchError(f"--blender {path}: can't run it ({exc.strerror or exc})") from None
+    done = _ask("--blender", [path, "--version"], "--version")
     banner = next((line.strip() for line in done.stdout.splitlines() if line.startswith("Blender ")), None)
     if done.returncode != 0 or banner is None or not any(c.isdigit() for c in banner):
         said = " ".join(done.stdout.split())[:80] or f"nothing, exit code {done.returncode}"
@@ -127,18 +134,7 @@ def bpy_version(path: str) -> str:
     """The bpy release of the Python interpreter `path` (``bpy 4.5.4 (build a1b2c3)``), checked once per path:
     BatchError in one line when `path` can't be run, hangs, is not a Python, has no bpy module, or one older than
     `OLDEST_BPY`."""
-    try:
-        done = subprocess.run([path, "-c", _PROBE], capture_output=True, text=True, errors="replace",
-                              timeout=VERSION_TIMEOUT, env={k: v for k, v in os.environ.items()
-                                                            if k not in ("PYTHONPATH", "PYTHONHOME")})  # fmt: skip
-    except FileNotFoundError:
-        raise BatchError(f"--python {path}: no such program") from None
-    except PermissionError:
-        raise BatchError(f"--python {path}: not executable") from None
-    except subprocess.TimeoutExpired:
-        raise BatchError(f"--python {path} did not answer within {VERSION_TIMEOUT:.0f} s") from None
-    except OSError as exc:
-        raise BatchError(f"--python {path}: can't run it ({exc.strerror or exc})") from None
+    done = _ask("--python", [path, "-c", _PROBE], "which bpy it has")
     said = dict(line.split(" ", 1) for line in done.stdout.splitlines() if " " in line)
     if "python" not in said:
         text = " ".join((done.stdout + done.stderr).split())[:80] or f"nothing, exit code {done.returncode}"
