@@ -101,12 +101,17 @@ class Check:
     """Runs a `CheckJob` (on `cluster`, a `batch.jobs.side.Cluster`, where given); `run()` returns the final
     `Look` and the final statistics of both sides."""
 
-    def __init__(self, job: CheckJob, progress, cluster: Cluster | None = None):
+    def __init__(self, job: CheckJob, progress, cluster: Cluster | None = None, side_progress=None):
         self.job = job
         self.progress = progress
 
         def side(name: str, side_job: RenderJob) -> Side:
-            live = Progress(len(side_job.seeds), label=name, live=True) if progress.live else None
+            # Each side's own events (its passes): to `side_progress(name)` where given (the Blender add-on),
+            # else to a live line of its own on a terminal.
+            if side_progress is not None:
+                live = side_progress(name)
+            else:
+                live = Progress(len(side_job.seeds), label=name, live=True) if progress.live else None
             if cluster is not None:
                 return ClusterSide(name, side_job, cluster, live, warn=progress.warning)
             return Side(name, side_job, live, warn=progress.warning)
@@ -119,6 +124,7 @@ class Check:
         # the plan's last spend the alpha kept for them, `wc.looks.EXTENSION_RESERVE`).
         self.budget = job.max_passes
         self.render_seconds = 0.0
+        self.last_look: tuple | None = None  # (the last look, both sides' statistics then): a live view's
 
     # -- state on disk ---------------------------------------------------------------------------------------
 
@@ -226,10 +232,10 @@ class Check:
         for side in self.rendered:
             side.finish()
 
-    def _render_to(self, passes: int) -> None:
-        """Both sides up to `passes` passes (at once: the sides share the machine, the chunk takes the longer).
-        The render seconds are the passes' own (what `--max-seconds` counts): a render process's start-up, loading
-        the scene once, is not a pass's."""
+    def _render_to(self, passes: int):
+        """Both sides up to `passes` passes (at once: the sides share the machine, the chunk takes the longer),
+        yielding while they render. The render seconds are the passes' own (what `--max-seconds` counts): a render
+        process's start-up, loading the scene once, is not a pass's."""
         before = sum(side.render_seconds for side in self.rendered)
         for side in self.rendered:
             side.request(passes)
@@ -237,7 +243,7 @@ class Check:
         while waiting:
             waiting = [side for side in waiting if not side.poll()]
             if waiting:
-                time.sleep(0.005)
+                yield
         self.render_seconds += sum(side.render_seconds for side in self.rendered) - before
 
     def _fraction(self, passes: int) -> float:
@@ -253,20 +259,37 @@ class Check:
         """A time budget becomes a pass budget once the first chunk shows the speed (the looks' information
         fractions need it, and it must not change afterwards)."""
         done = min(s.passes for s in self.rendered)
-        seconds_per_pass = self.render_seconds / max(done, 1)
+        # A pass of each side at its fastest so far: a side's first passes also build the scene's render data (2-3x
+        # slower here). Too many passes planned only leaves alpha unspent when the time runs out (conservative);
+        # too few would stop the check before its time.
+        fastest = [min(s.pass_seconds) for s in self.rendered if s.pass_seconds]
+        seconds_per_pass = sum(fastest) if fastest else self.render_seconds / max(done, 1)
         left = self.job.max_seconds - self.render_seconds
         passes = done + int(left / max(seconds_per_pass, 1e-9))
         self.plan = self.job.plan(min(max(passes, wc.looks.FIRST_LOOK), len(self.job.test.seeds)))
         self.budget = self.plan.max_passes
 
     def run(self) -> tuple[wc.Look, wc.TileStats, wc.TileStats]:
+        """The whole check, blocking: (the final look, both sides' statistics)."""
+        steps = self.steps()
+        while True:
+            try:
+                next(steps)
+            except StopIteration as done:
+                return done.value
+            time.sleep(0.005)
+
+    def steps(self):
+        """The check as a generator that never blocks: each step polls the sides once (or makes a look) and yields;
+        it returns what `run` returns. Closing it (a Stop in the Blender add-on) stops the sides and keeps the
+        state, as an interrupt does."""
         if self.job.resume:
             self._load_state()
         self._save_state()  # before anything renders: a check stopped at once can still be resumed
         try:
             self._start()
-            result = self._loop()
-        except BaseException:
+            result = yield from self._loop()
+        except BaseException:  # an interrupt, an error, or the generator closed
             self._stop()
             self._save_state()
             raise
@@ -286,7 +309,7 @@ class Check:
             ref, test = (ref if self.job.fixed_reference else self._at(ref, n)), self._at(test, n)
             return wc.sequential_look(ref, test, self.plan, fractions, final=True), ref, test
         if self.plan is None:
-            self._render_to(wc.looks.FIRST_LOOK)
+            yield from self._render_to(wc.looks.FIRST_LOOK)
             self._fix_budget()
         schedule = [n for n in wc.look_schedule(self.plan.max_passes, budget=self.budget) if n > done]
         deadline = None if self.job.max_seconds is None else self.job.max_seconds
@@ -295,7 +318,7 @@ class Check:
             out_of_time = deadline is not None and self.render_seconds >= deadline
             if out_of_time:
                 break
-            self._render_to(n)
+            yield from self._render_to(n)
             ref, test = self._load()
             n = min(ref.n, test.n) if not self.job.fixed_reference else test.n
             fractions.append(self._fraction(n))
@@ -315,6 +338,8 @@ class Check:
                     seconds=self.render_seconds,
                 )
             )
+            self.last_look = look, ref, test
+            yield
             if look.verdict is not None:
                 return look, ref, test
         ref, test = self._load()

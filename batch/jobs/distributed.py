@@ -571,6 +571,7 @@ class ClusterSide(Side):
         for result in self.pool:
             stats = accumulate(stats, result, self.job)
             self.render_seconds += sum(s for s in result.seconds if math.isfinite(s))
+            self.pass_seconds += [s for s in result.seconds if math.isfinite(s)]
             for message in result.warnings:
                 self._warn(f"{result.worker}: {message}")
             if self.progress is not None:

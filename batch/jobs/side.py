@@ -51,6 +51,7 @@ class Side:
         self.passes = 0  # in the statistics file
         self._started_at, self._alive = time.monotonic(), False  # since when, and whether it has said anything
         self.render_seconds = 0.0  # the seconds of the passes rendered here (their own, start-up not counted)
+        self.pass_seconds: list[float] = []  # each of them
         self.process: JobProcess | None = None
         self._asked = 0  # passes the current request waits for (0: none outstanding)
 
@@ -152,6 +153,7 @@ class Side:
             else:
                 if isinstance(event, protocol.PassDone):
                     self.render_seconds += event.seconds
+                    self.pass_seconds.append(event.seconds)
                 if self.progress is not None:
                     self.progress.emit(event)
         return saved
