@@ -29,8 +29,21 @@ def presenting():
     return summary
 
 
+def checking():
+    """The check engine and the command line that describes a check (batch.decide.check, batch.cli.commands),
+    imported when a run starts."""
+    try:
+        from ..batch.cli import commands
+        from ..batch.decide import check
+    except ImportError:
+        from batch.cli import commands
+        from batch.decide import check
+    return check, commands
+
+
 __all__ = [
     "ADDON_MODULE",
+    "checking",
     "errors",
     "fmt",
     "job",

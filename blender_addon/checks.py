@@ -57,6 +57,11 @@ def setup_problems(settings, scene, abspath=os.path.abspath) -> list[str]:
     if reference is not None and test is not None and render_size(reference) != render_size(test):
         (rw, rh), (tw, th) = render_size(reference), render_size(test)
         problems.append(f"The reference and test scenes render at different sizes: {rw}x{rh} and {tw}x{th}")
+    if settings.mode == "CURRENT_WITH_OVERRIDES" and not settings.enabled_overrides() and settings.paired:
+        problems.append(
+            "No overrides: both sides would be the same renders; add an override, or turn Paired off to check the "
+            "scene against itself on other seeds"
+        )
     return problems + override_problems(settings.enabled_overrides())
 
 
@@ -69,8 +74,8 @@ def setup_warnings(settings, scene) -> list[str]:
     for side in dict.fromkeys(s for s in (reference, test) if s is not None):
         if side.render.engine != "CYCLES":
             warnings.append(f"Scene '{side.name}' uses {side.render.engine}: the passes are rendered with Cycles")
-    if settings.mode == "CURRENT_WITH_OVERRIDES" and not settings.enabled_overrides():
-        warnings.append("No overrides: both sides render the same settings (a check of the test itself)")
+    if settings.mode == "CURRENT_WITH_OVERRIDES" and not settings.enabled_overrides() and not settings.paired:
+        warnings.append("No overrides: the scene against itself on other seeds (a check of the test itself)")
     if settings.mode == "TWO_SCENES" and reference is not None and reference == test:
         warnings.append("Reference and test are the same scene")
     return warnings

@@ -12,7 +12,7 @@ from bpy.app.handlers import persistent
 from bpy.props import BoolProperty, IntProperty, StringProperty
 
 from . import checks, overlay, results, runner, session
-from ._siblings import errors, fmt, welch_core
+from ._siblings import checking, errors, fmt, welch_core
 from .state import current
 
 TIMER_SECONDS = 0.25
@@ -23,10 +23,40 @@ def compare_and_show(context, reference_path: str, test_path: str, alpha: float)
     comparison, reference, test, layers = results.compare_files(reference_path, test_path, alpha)
     sources = {"reference": reference_path, "test": test_path}
     summary = results.store(comparison, reference, test, sources, layers)
+    show(context)
+    return summary
+
+
+def show(context) -> None:
+    """Draw the stored result and show it where the image is (the overlay, or an Image Editor)."""
     image = results.refresh(context)
     if not overlay.shown_anywhere(context):  # else the map is over the render someone looks at already
         results.show_in_image_editor(context, image)
+
+
+def conclude_check(context, run: runner.CheckRun) -> dict:
+    """The finished check's report (written into its folder, as ``python -m batch check`` writes it) and its
+    result shown: the verdict and numbers of its final look, the map of its final passes."""
+    look, reference, test = run.result
+    check, _ = checking()
+    report, comparison = check.report_check(run.check, look, reference, test)
+    layers = results.layer_comparisons(run.job.reference.out, run.job.test.out, comparison)
+    sources = {"reference": run.job.reference.out, "test": run.job.test.out}
+    summary = results.store(comparison, reference, test, sources, layers, outcome=look.outcome, report=report)
+    show(context)
     return summary
+
+
+def show_look(context, run: runner.CheckRun) -> None:
+    """The map of the last look's passes while the check goes on (the verdict is the look's)."""
+    taken = run.take_look()
+    if taken is None:
+        return
+    look, reference, test = taken
+    comparison = welch_core.compare(reference, test, run.job.alpha, tolerance=run.job.tolerance)
+    sources = {"reference": run.job.reference.out, "test": run.job.test.out}
+    results.store(comparison, reference, test, sources, outcome=look.outcome)
+    show(context)
 
 
 def verdict_message(summary: dict) -> str:
@@ -108,8 +138,8 @@ class WELCH_BIAS_OT_run(bpy.types.Operator):
         tag_redraw_status_bar(context)
         if ended.state == runner.FINISHED:
             try:
-                summary = compare_and_show(context, run.reference, run.test, run.alpha)
-            except (welch_core.WelchInputError, OSError) as ex:
+                summary = conclude_check(context, ended)
+            except (welch_core.WelchInputError, OSError, errors.BatchError) as ex:
                 self._fail(str(ex))
                 return {"CANCELLED"}
             session.prune_old_runs(context)
@@ -147,6 +177,10 @@ class WELCH_BIAS_OT_run(bpy.types.Operator):
         if event.type != "TIMER":
             return {"PASS_THROUGH"}
         if current.session is not None and current.session.poll() == runner.RUNNING:
+            try:
+                show_look(context, current.session)
+            except (welch_core.WelchInputError, OSError) as ex:  # a live map is a view: the run goes on
+                current.overlay_error = fmt.one_line(str(ex))
             tag_redraw(context)
             if current.session.status_text() != self._status:
                 self._status = current.session.status_text()

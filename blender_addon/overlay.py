@@ -72,6 +72,14 @@ def _corners(rects, order: str):
     return np.ascontiguousarray(stacked.reshape(-1, 2), dtype=np.float32)
 
 
+def significant_of(comparison):
+    """The finest tiles the verdict found significant: for the stored comparison of a check, its look's (the
+    verdict is the look's), else the comparison's own."""
+    if comparison is current.comparison and current.significant is not None:
+        return current.significant
+    return comparison.significant
+
+
 def tile_geometry(comparison, map_mode: str, channel: str, opacity: float) -> Geometry:
     """The overlay of `comparison` with the panel's display settings (``map_mode`` and ``channel`` as the
     settings' identifiers)."""
@@ -80,7 +88,8 @@ def tile_geometry(comparison, map_mode: str, channel: str, opacity: float) -> Ge
     tiles_y, tiles_x = comparison.tile_pvalues.shape
     rects = tile_rects(tiles_y, tiles_x, comparison.tile, comparison.width, comparison.height)
     rgb = welch_core.pvalue_rgb(comparison, mode=CORE_MAP_MODES[map_mode], channel=CHANNEL_INDEX.get(channel))
-    shown = comparison.significant if map_mode == "SIGNIFICANT" else comparison.used
+    significant = significant_of(comparison)
+    shown = significant if map_mode == "SIGNIFICANT" else comparison.used
     alpha = np.where(shown, float(opacity), 0.0)[..., None]  # untrusted and untestable tiles stay clear
     rgba = np.concatenate([rgb, alpha], axis=-1).reshape(-1, 4).astype(np.float32)
     return Geometry(
@@ -88,7 +97,7 @@ def tile_geometry(comparison, map_mode: str, channel: str, opacity: float) -> Ge
         height=comparison.height,
         positions=_corners(rects, TRIANGLES),
         colors=np.ascontiguousarray(np.repeat(rgba, len(TRIANGLES), axis=0)),
-        outline=_corners(rects[comparison.significant.ravel()], OUTLINE),
+        outline=_corners(rects[significant.ravel()], OUTLINE),
     )
 
 

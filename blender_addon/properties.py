@@ -1,4 +1,5 @@
-"""Scene settings: what the reference and test sides are, how many passes, and how the result is shown.
+"""Scene settings: what the reference and test sides are, the budget and tolerance of the check, and how the
+result is shown. The defaults are the command line's (``python -m batch check``).
 
 Only the setup lives here (it is saved with the file); the running job and the last result are module state in
 ``state.py`` so nothing transient ends up in the user's file.
@@ -14,8 +15,6 @@ from bpy.props import (
     PointerProperty,
     StringProperty,
 )
-
-from .runner import MAX_FIRST_SEED
 
 MODES = (
     (
@@ -89,29 +88,44 @@ class WELCH_BIAS_PG_settings(bpy.types.PropertyGroup):
     test_file: StringProperty(
         name="Test Statistics", description="Statistics file of the test side", subtype="FILE_PATH"
     )
-    passes: IntProperty(
-        name="Passes",
-        description="Independent renders per side, each with its own seed (the sample size of every test)",
-        default=32,
+    max_passes: IntProperty(
+        name="Max Passes",
+        description="The most independent renders a side (each with its own seed): the run stops as soon as the "
+        "data decide, and says what it rules out when it reaches this",
+        default=512,
         min=2,
-        soft_max=1000,
+        soft_max=4096,
     )
-    first_seed: IntProperty(
-        name="First Seed",
-        description="Seed of the first reference pass; the test side continues after the reference seeds",
-        default=0,
-        min=0,
-        max=MAX_FIRST_SEED,
+    tolerance: FloatProperty(
+        name="Tolerance %",
+        description="Stop at Equivalent once every tile of the finest size is within this relative difference of "
+        "the reference (0: stop only at Biased)",
+        default=1.0,
+        min=0.0,
+        soft_max=10.0,
+        precision=2,
+        step=10,
     )
     paired: BoolProperty(
         name="Paired",
-        description="Render both sides with the same seeds and test per-pass differences "
-        "(more sensitive when the change keeps most of the noise)",
-        default=False,
+        description="Render both sides with the same seeds and test per-pass differences (more sensitive; off: "
+        "disjoint seeds, an A/A check)",
+        default=True,
+    )
+    test_build: StringProperty(
+        name="Test Build",
+        description="Render the test side with another build: a Blender binary, or a Python whose environment has "
+        "another release's bpy (python -m batch bpy VERSION makes one). Empty: this Blender",
+        default="",
+        subtype="FILE_PATH",
     )
     spp: IntProperty(name="Samples per Pass", description="Cycles samples of each pass", default=1, min=1, soft_max=64)
     tile: IntProperty(
-        name="Tile Size", description="Edge of the square pixel tiles that are tested", default=32, min=2, soft_max=256
+        name="Tile Size",
+        description="Edge of the finest square pixel tiles tested (their 2x2, 4x4, ... blocks are tested too)",
+        default=16,
+        min=2,
+        soft_max=256,
     )
     device: EnumProperty(
         name="Device",

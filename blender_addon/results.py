@@ -34,14 +34,19 @@ def compare_files(reference_path: str, test_path: str, alpha: float):
     reference = welch_core.load_stats(reference_path)
     test = welch_core.load_stats(test_path)
     comparison = welch_core.compare(reference, test, alpha=alpha)
+    return comparison, reference, test, layer_comparisons(reference_path, test_path, comparison)
+
+
+def layer_comparisons(reference_path: str, test_path: str, comparison) -> dict:
+    """The comparison of each layer both statistics files have (light components, light groups), by name, with
+    the image's alpha and test."""
     ref_layers = welch_core.load_layers(reference_path, pixels=False)
     test_layers = welch_core.load_layers(test_path, pixels=False)
-    layers = {
-        name: welch_core.compare(layer, test_layers[name], alpha=alpha, test_kind=comparison.test)
+    return {
+        name: welch_core.compare(layer, test_layers[name], alpha=comparison.alpha, test_kind=comparison.test)
         for name, layer in ref_layers.items()
         if name in test_layers
     }
-    return comparison, reference, test, layers
 
 
 def shown_comparison(settings):
@@ -64,15 +69,26 @@ def histogram_bars(pvalues, bins: int = HISTOGRAM_BINS) -> tuple[list[dict], flo
     return bars, float(expected)
 
 
-def summarize(comparison, reference, test, sources: dict[str, str]) -> dict:
-    """Everything the panel shows, computed once: the command line's summary (notes and warnings included) and
-    the panel's histogram bars, verdict title and icon."""
-    summary = _summary_module().summarize(comparison, reference, test, sources["reference"], sources["test"])
+def summarize(comparison, reference, test, sources: dict[str, str], outcome=None, report=None) -> dict:
+    """Everything the panel shows, computed once: the command line's summary (notes and warnings included; a
+    check's report as written, or the summary with a look's `outcome`) and the panel's histogram bars, verdict
+    title and icon."""
+    if report is not None:
+        summary = dict(report)
+    else:
+        summary = _summary_module().summarize(comparison, reference, test, sources["reference"], sources["test"],
+                                              outcome=outcome)  # fmt: skip
+    decided = outcome or comparison.outcome
+    verdict = welch_core.Verdict(summary["verdict"])
     bars, expected = histogram_bars(comparison.tile_pvalues[comparison.used])
+    title, icon = verdict.title + (" (Bit-Identical)" if decided.identical else ""), VERDICT_ICONS[verdict]
+    if not decided.decided:  # a look of a check that goes on: numbers so far, no verdict yet
+        title, icon = f"No Verdict Yet ({decided.n_test} Passes)", "TIME"
+        summary["sentence"] = "so far: " + summary["sentence"].partition(": ")[2]
     summary.update(
-        verdict_title=comparison.verdict.title + (" (Bit-Identical)" if comparison.outcome.identical else ""),
+        verdict_title=title,
         design=_summary_module().design_line(summary),
-        verdict_icon=VERDICT_ICONS[comparison.verdict],
+        verdict_icon=icon,
         histogram=bars,
         histogram_expected=expected,
         top_tiles=summary["top_tiles"][:TOP_TILES_SHOWN],
@@ -105,7 +121,7 @@ def result_rgba(comparison, base_stats, map_mode: str, channel: str, opacity: fl
     core_mode = CORE_MAP_MODES[map_mode]
     tiles_rgb = welch_core.pvalue_rgb(comparison, mode=core_mode, channel=CHANNEL_INDEX.get(channel))
     map_rgb = welch_core.upscale_tiles(tiles_rgb, tile, height, width)
-    shown = comparison.significant if map_mode == "SIGNIFICANT" else comparison.used
+    shown = overlay.significant_of(comparison) if map_mode == "SIGNIFICANT" else comparison.used
     mask = welch_core.upscale_tiles(shown.astype(np.float32), tile, height, width)
     mean = base_stats.mean_image
     base = welch_core.tonemap(mean) if mean is not None else np.full((height, width, 3), 0.5, np.float32)
@@ -180,11 +196,13 @@ def frame_tile(context, x: int, y: int, size: int) -> bool:
     return True
 
 
-def store(comparison, reference, test, sources: dict[str, str], layers=None) -> dict:
-    """Cache a new comparison (and its layers') for the panels and the display settings."""
+def store(comparison, reference, test, sources: dict[str, str], layers=None, outcome=None, report=None) -> dict:
+    """Cache a new comparison (and its layers') for the panels and the display settings; a check's verdict is
+    its look's `outcome` (or its finished `report`), the comparison only draws the map."""
     current.comparison, current.stats, current.highlight = comparison, (reference, test), None
+    current.significant = (outcome or comparison.outcome).significant
     current.layers = dict(layers or {})
-    current.result = summarize(comparison, reference, test, sources)
+    current.result = summarize(comparison, reference, test, sources, outcome=outcome, report=report)
     current.result["layers"] = [
         {"name": name, "verdict": c.verdict.label, "title": c.verdict.title} for name, c in current.layers.items()
     ]

@@ -1,9 +1,10 @@
-"""Render the sides of a comparison as background jobs and follow their progress, without bpy.
+"""Run a check (`batch.decide.check`, the engine of ``python -m batch check``) from a timer, without bpy.
 
-The modal operator calls these on a timer: :class:`Session` runs the reference side, then the test side, each
-a `batch.jobs.job.RenderJob` started through `batch.jobs.launch` (its ``--json-progress`` events read by threads, so the
-UI never blocks on a pipe), and turns their events into one progress fraction, a status line and, on failure,
-a one-line error.
+The modal operator calls :meth:`CheckRun.poll` on a timer: each call steps the check for a few milliseconds (the
+render processes work in the background, so a step never waits for a pass) and turns its events into a progress
+fraction, a status line and, after each look, the look itself for a live map. Stop closes the check: its render
+processes finish their pass and save, and its state stays in the run folder, so a later run with ``--resume``
+continues it, exactly as Ctrl-C and ``--resume`` on the command line.
 """
 
 from __future__ import annotations
@@ -11,177 +12,110 @@ from __future__ import annotations
 import os
 import shutil
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ._siblings import errors, fmt, job, launch, protocol, seeds
-
-MAX_SEED = seeds.MAX_SEED  # Cycles' seed is a non-negative 32-bit int
-MAX_FIRST_SEED = 2**30  # leaves room for two sides of up to 2**29 passes
+from ._siblings import checking, errors, fmt, protocol, welch_core
 
 RUNNING = "RUNNING"
 FINISHED = "FINISHED"
 FAILED = "FAILED"
 CANCELLED = "CANCELLED"
 
-
-def seed_ranges(first: int, passes: int, paired: bool) -> tuple[range, range]:
-    """Seeds of the reference and test sides.
-
-    Unpaired runs need disjoint seeds because the same seed renders the same image; a paired run uses the same
-    seeds on purpose so per-pass differences cancel the shared noise.
-    """
-    if first < 0 or passes < 1:
-        raise ValueError(f"seeds need first >= 0 and passes >= 1, got first={first}, passes={passes}")
-    if first + 2 * passes - 1 > MAX_SEED:
-        raise ValueError(f"seeds must stay below {MAX_SEED + 1}, got first={first}, passes={passes}")
-    reference = range(first, first + passes)
-    test = reference if paired else range(first + passes, first + 2 * passes)
-    return reference, test
-
-
-@dataclass(frozen=True)
-class Side:
-    """One side of the comparison: its name for people and its render job."""
-
-    label: str
-    job: job.RenderJob
+#: Seconds of stepping per poll: short enough for the UI, long enough to relay a chunk's events.
+STEP_SECONDS = 0.02
 
 
 @dataclass
-class Progress:
-    """What the last progress event of the running side said."""
+class SideProgress:
+    """What the last events of one side said (its passes saved so far, its speed)."""
 
+    name: str
     done: int = 0
     total: int = 0
     seconds: float = 0.0
-    eta: float | None = None
 
-
-def overall_fraction(step: int, steps: int, done: int, total: int) -> float:
-    """Progress over all sides in [0, 1]; each side counts the same (they render the same number of passes)."""
-    if steps <= 0:
-        return 1.0
-    within = min(max(done / total, 0.0), 1.0) if total > 0 else 0.0
-    return min((min(step, steps) + within) / steps, 1.0)
+    def emit(self, event) -> None:
+        match event:
+            case protocol.Started(total=total, todo=todo):
+                self.total, self.done = total, total - todo
+            case protocol.PassDone(done=done, total=total, seconds=seconds):
+                self.done, self.total, self.seconds = done, total, seconds
 
 
 @dataclass
-class Session:
-    """The sides of one comparison, rendered one after the other.
+class CheckRun:
+    """One check, polled: its state (``RUNNING``, ``FINISHED``, ``FAILED`` or ``CANCELLED``), progress, the last
+    look (for a live map) and, when finished, its result: (the final look, both sides' statistics)."""
 
-    Call :meth:`poll` regularly (from a timer or a loop): it starts the next side when one finishes and returns
-    the state, one of ``RUNNING``, ``FINISHED``, ``FAILED`` or ``CANCELLED``. `commands` default to
-    `batch.jobs.launch.job_command` of each side's job. `temporary_files` are deleted when the session finishes.
-    """
-
-    sides: list[Side]
-    commands: list[launch.Command] = field(default_factory=list)
+    job: object  # a batch.decide.check.CheckJob
     temporary_files: list[str] = field(default_factory=list)
-    launcher: Callable[[launch.Command], launch.JobProcess] = launch.JobProcess
+    env: dict | None = None  # the render processes' environment (default: this process's)
     state: str = RUNNING
-    step: int = 0
-    progress: Progress = field(default_factory=Progress)
     error: str = ""
     warnings: list[str] = field(default_factory=list)
-    process: launch.JobProcess | None = None
+    sides: dict[str, SideProgress] = field(default_factory=dict)
+    looked: object = None  # the last protocol.Looked event
+    new_look: bool = False  # a look arrived since `take_look` was last called
+    result: tuple | None = None
+
+    live = False  # what the check asks of its progress: no terminal lines here
 
     def __post_init__(self):
-        if not self.sides:
-            raise ValueError("a session needs at least one side")
-        if not self.commands:
-            self.commands = [launch.job_command(side.job) for side in self.sides]
-        if len(self.commands) != len(self.sides):
-            raise ValueError("a session needs one command per side")
+        check_module, _ = checking()
+        self.check = check_module.Check(self.job, self, side_progress=self._side, env=self.env)
+        self._steps = self.check.steps()
 
-    @property
-    def fraction(self) -> float:
-        if self.state == FINISHED:
-            return 1.0
-        return overall_fraction(self.step, len(self.sides), self.progress.done, self.progress.total)
+    def _side(self, name: str) -> SideProgress:
+        self.sides[name] = SideProgress(name)
+        return self.sides[name]
 
-    @property
-    def label(self) -> str:
-        return self.sides[min(self.step, len(self.sides) - 1)].label
+    # -- what the check reports to its progress ----------------------------------------------------------------
 
-    def status_text(self) -> str:
-        """One line for the status bar and the panel."""
-        if self.state != RUNNING:
-            return {FINISHED: "Finished", FAILED: f"Failed: {self.error}", CANCELLED: "Cancelled"}[self.state]
-        p = self.progress
-        if p.total <= 0:
-            return f"{self.label}: starting"
-        return f"{self.label}: pass {p.done}/{p.total}, {fmt.duration(p.eta)} left for this side"
+    def emit(self, event) -> None:
+        if isinstance(event, protocol.Looked):
+            self.looked, self.new_look = event, True
+
+    def warning(self, message: str) -> None:
+        self.warnings.append(fmt.one_line(message))
+
+    # -- polling -----------------------------------------------------------------------------------------------
 
     def poll(self) -> str:
         if self.state != RUNNING:
             return self.state
-        if self.process is None:
-            self._start_step()
-            if self.state != RUNNING:
-                return self.state
-        for event in self.process.drain():
-            self._apply(event)
-        code = self.process.poll()
-        if code is not None:
-            for event in self.process.drain():
-                self._apply(event)
-            self._step_ended(code)
+        deadline = time.monotonic() + STEP_SECONDS
+        try:
+            while time.monotonic() < deadline:
+                next(self._steps)
+                if self.new_look:
+                    break  # let the caller show it
+        except StopIteration as done:
+            self.result, self.state = done.value, FINISHED
+            self.remove_temporary_files()
+        except KeyboardInterrupt:
+            self.state = CANCELLED
+        except (errors.BatchError, welch_core.WelchInputError, RuntimeError, OSError) as ex:
+            self.state, self.error = FAILED, fmt.one_line(str(ex))
         return self.state
 
-    def _start_step(self) -> None:
-        self.progress = Progress()
-        try:
-            self.process = self.launcher(self.commands[self.step])
-        except (OSError, errors.BatchError) as ex:
-            self._fail(f"{self.label} run could not start: {ex}")
-
-    def _apply(self, event: protocol.Event) -> None:
-        match event:
-            case protocol.Started(total=total, todo=todo):
-                # A resumed run starts with the passes already in its statistics file.
-                self.progress.total, self.progress.done = total, total - todo
-            case protocol.PassDone(done=done, total=total, seconds=seconds, eta=eta):
-                self.progress.done, self.progress.total = done, total
-                self.progress.seconds, self.progress.eta = seconds, eta
-            case protocol.Finished(passes=passes):
-                self.progress.done = self.progress.total = max(passes, self.progress.total)
-            case protocol.Warned(message=message):
-                self.warnings.append(fmt.one_line(f"{self.label}: {message}"))
-
-    def _step_ended(self, code: int) -> None:
-        side = self.sides[self.step]
-        if code != 0:
-            reason = self.process.error_message() or "no error message"
-            self._fail(f"{side.label} run failed (exit code {code}): {reason}")
-            return
-        if not Path(side.job.out).is_file():
-            self._fail(f"{side.label} run ended without writing {side.job.out}")
-            return
-        self.process = None
-        self.progress = Progress()
-        self.step += 1
-        if self.step == len(self.sides):
-            self.state = FINISHED
-            self.remove_temporary_files()
-
-    def _fail(self, message: str) -> None:
-        # The temporary files stay: a failed run may be resumed, with the very scene it started from.
-        self.state = FAILED
-        self.error = fmt.one_line(message)
+    def take_look(self):
+        """The last look and both sides' statistics then, once per look (None: no new one)."""
+        if not self.new_look:
+            return None
+        self.new_look = False
+        return self.check.last_look
 
     def cancel(self) -> None:
-        """Stop the running side after its current pass; its statistics (and the temporary files it renders
-        from) stay, so the run can be resumed."""
+        """Stop now: the render processes finish their pass and save, the check's state is kept for a resume."""
         if self.state != RUNNING:
             return
-        if self.process is not None:
-            self.process.stop()
+        self._steps.close()
         self.state = CANCELLED
 
-    def wait(self, interval: float = 0.1, timeout: float | None = None) -> str:
-        """Poll until the session ends (for scripts and tests; the UI polls from a timer instead)."""
+    def wait(self, interval: float = 0.05, timeout: float | None = None) -> str:
+        """Poll until the check ends (for scripts and tests; the UI polls from a timer instead)."""
         deadline = None if timeout is None else time.monotonic() + timeout
         while self.poll() == RUNNING:
             if deadline is not None and time.monotonic() > deadline:
@@ -189,6 +123,36 @@ class Session:
                 break
             time.sleep(interval)
         return self.state
+
+    # -- what the panel shows ----------------------------------------------------------------------------------
+
+    @property
+    def budget(self) -> int:
+        return self.check.budget or self.job.max_passes or 0
+
+    @property
+    def passes(self) -> int:
+        """Passes a side saved so far (the slower side's)."""
+        return min((s.done for s in self.sides.values()), default=0)
+
+    @property
+    def fraction(self) -> float:
+        if self.state == FINISHED:
+            return 1.0
+        return min(self.passes / self.budget, 1.0) if self.budget else 0.0
+
+    def status_text(self) -> str:
+        """One line for the status bar and the panel."""
+        if self.state != RUNNING:
+            return {FINISHED: "Finished", FAILED: f"Failed: {self.error}", CANCELLED: "Stopped"}[self.state]
+        if not self.passes:
+            return "Starting the renders"
+        text = f"pass {self.passes}/{self.budget} a side"
+        look = self.looked
+        if look is not None:
+            bound = f"; a bias beyond {fmt.magnitude(look.ruled_out)} ruled out" if look.ruled_out else ""
+            text += f", smallest p {fmt.p_value(look.p_value)} (stops at {fmt.p_value(look.threshold)}){bound}"
+        return text
 
     def remove_temporary_files(self) -> None:
         for path in self.temporary_files:

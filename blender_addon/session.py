@@ -6,6 +6,7 @@ own folder, which both sides render.
 
 from __future__ import annotations
 
+import os
 import sys
 import tempfile
 import time
@@ -14,8 +15,7 @@ from pathlib import Path
 import bpy
 
 from . import checks, preferences, runner
-from ._siblings import ADDON_MODULE, launch, lobes
-from ._siblings import job as jobs
+from ._siblings import ADDON_MODULE, checking, lobes
 from .state import RunFolder, current
 
 
@@ -74,44 +74,47 @@ def settings_key(settings, scene) -> tuple:
     reference, test = checks.sides(settings, scene)
     names = tuple(s.name if s is not None else "" for s in (reference, test))
     return (
-        bpy.data.filepath, settings.mode, names, tuple(settings.enabled_overrides()), settings.passes,
-        settings.first_seed, settings.paired, settings.spp, settings.tile, settings.device, settings.use_lobes,
+        bpy.data.filepath, settings.mode, names, tuple(settings.enabled_overrides()), settings.max_passes,
+        settings.paired, settings.spp, settings.tile, settings.device, settings.use_lobes, settings.tolerance,
+        settings.test_build,
     )  # fmt: skip
+
+
+def check_arguments(settings, scene, blend: str, folder: Path, resume: bool, blender: str = "") -> list[str]:
+    """The ``check`` command line of a run (on the saved copy `blend`): the panel runs exactly what
+    ``python -m batch check`` with these arguments runs, with its defaults."""
+    reference, test = checks.sides(settings, scene)
+    argv = ["check", blend, "--blend-scene", reference.name, "--out", str(folder), "--spp", str(settings.spp),
+            "--tile", str(settings.tile), "--device", settings.device, "--alpha", f"{alpha_of(settings):g}",
+            "--max-passes", str(settings.max_passes),
+            "--tolerance", f"{settings.tolerance:g}%" if settings.tolerance > 0 else "off"]  # fmt: skip
+    if test != reference:
+        argv += ["--test-blend", blend, "--test-blend-scene", test.name]
+    for override in settings.enabled_overrides():
+        argv += ["--set", override]
+    if blender:
+        argv += ["--blender", blender]
+    other = bpy.path.abspath(settings.test_build) if settings.test_build else ""
+    if other:  # another build for the test side: a Blender binary, or a Python with another release's bpy
+        argv += ["--test-python" if Path(other).name.startswith("python") else "--test-blender", other]
+    if not settings.paired:
+        argv.append("--unpaired")
+    if settings.use_lobes:
+        argv += ["--lobes", ",".join(_lobes(settings, scene))]
+    if resume:
+        argv.append("--resume")
+    return argv
 
 
 def _lobes(settings, scene) -> tuple[str, ...]:
     """The components, and the light groups where the view layer has some (``--lobes``)."""
-    if not settings.use_lobes:
-        return ()
     groups = any(len(getattr(layer, "lightgroups", ())) for layer in scene.view_layers)
     components = lobes.COMPONENTS
     return (*components, "lightgroups") if groups else components
 
 
-def sides(settings, scene, blend: str, folder: Path, resume: bool, blender: str = "") -> list[runner.Side]:
-    """The reference and test sides of a run, as render jobs on the saved copy `blend`."""
-    reference, test = checks.sides(settings, scene)
-    ref_seeds, test_seeds = runner.seed_ranges(settings.first_seed, settings.passes, settings.paired)
-    common = {
-        "blend": blend,
-        "spp": settings.spp,
-        "tile": settings.tile,
-        "resume": resume,
-        "device": settings.device,
-        "blender": blender or None,
-        "lobes": _lobes(settings, scene),
-    }
-    job = jobs.RenderJob
-    return [
-        runner.Side("Reference", job(out=str(folder / "reference.npz"), seeds=ref_seeds, blend_scene=reference.name,
-                                     **common)),
-        runner.Side("Test", job(out=str(folder / "test.npz"), seeds=test_seeds, blend_scene=test.name,
-                                overrides=tuple(settings.enabled_overrides()), **common)),
-    ]  # fmt: skip
-
-
-def start(context, settings, resume: bool) -> runner.Session:
-    """Save a copy of the file (the user's file is never touched) and start the reference side.
+def start(context, settings, resume: bool) -> runner.CheckRun:
+    """Save a copy of the file (the user's file is never touched) and start the check.
 
     Resuming renders the copy the run started from (kept while the run can be resumed): the statistics go on
     with the very scene they began with, whatever was edited since.
@@ -122,17 +125,20 @@ def start(context, settings, resume: bool) -> runner.Session:
         bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True, check_existing=False)
     elif not blend.is_file():
         raise OSError(f"the stopped run's copy of the scene is gone ({blend}): start a new run")
-    run_sides = sides(settings, context.scene, str(blend), folder, resume, blender_binary(context))
-    paths = extension_wheel_paths()
-    commands = [launch.job_command(side.job, python_paths=paths) for side in run_sides]
+    check, commands = checking()
+    argv = check_arguments(settings, context.scene, str(blend), folder, resume, blender_binary(context))
+    job = check.check_job_from_args(commands.build_parser().parse_args(argv))
+    # Render processes started with this Python (the bpy module) find the extension's wheels.
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([*extension_wheel_paths(), *filter(None, [env.get("PYTHONPATH")])])
     prefs = preferences.get(context)
     keep = prefs is not None and prefs.keep_temporary_files
-    session = runner.Session(run_sides, commands, temporary_files=[] if keep else [str(blend)])
+    session = runner.CheckRun(job, temporary_files=[] if keep else [str(blend)], env=env)
     current.session, current.last_error, current.resumable = session, "", None
     current.run = RunFolder(
         dir=str(folder),
-        reference=run_sides[0].job.out,
-        test=run_sides[1].job.out,
+        reference=job.reference.out,
+        test=job.test.out,
         alpha=alpha_of(settings),
         key=settings_key(settings, context.scene),
     )

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from .runner import RUNNING, Session
+from .runner import RUNNING, CheckRun
 
 
 @dataclass(frozen=True)
@@ -25,7 +25,7 @@ class RunFolder:
 
 @dataclass
 class AddonState:
-    session: Session | None = None  # while a run is going on, and until the next one starts
+    session: CheckRun | None = None  # while a check is going on, and until the next one starts
     run: RunFolder | None = None  # the run of `session`
     resumable: RunFolder | None = None  # a cancelled or failed run whose statistics can be continued
     result: dict | None = None  # the panel's summary of the last comparison (see results.summarize)
@@ -33,6 +33,7 @@ class AddonState:
     layers: dict = field(default_factory=dict)  # its layers' comparisons (light components, light groups)
     stats: tuple = field(default_factory=tuple)  # (reference, test) TileStats of the last comparison
     highlight: tuple[int, int] | None = None  # (row, col) of the tile outlined in the result image
+    significant: object = None  # the finest tiles the verdict found significant (a check's: its look's)
     overlay: object = None  # overlay.Geometry of the comparison with the display settings, or None
     overlay_batches: object = None  # the GPU batches drawn from `overlay`, made by the first draw after a change
     overlay_error: str = ""  # why the overlay could not be drawn, shown in the panel
@@ -42,7 +43,7 @@ class AddonState:
         return self.session is not None and self.session.state == RUNNING
 
     def clear_result(self) -> None:
-        self.result, self.comparison, self.stats, self.highlight = None, None, (), None
+        self.result, self.comparison, self.stats, self.highlight, self.significant = None, None, (), None, None
         self.layers = {}
         self.overlay, self.overlay_batches, self.overlay_error = None, None, ""
 

@@ -78,14 +78,15 @@ def draw_setup(layout, settings) -> None:
     if body is not None:
         draw_overrides(body, settings)
     col = layout.column()
-    col.prop(settings, "passes")
+    col.prop(settings, "max_passes")
+    col.prop(settings, "tolerance")
     col.prop(settings, "spp")
-    col.prop(settings, "first_seed")
     col.prop(settings, "paired")
     col.prop(settings, "tile")
     col.prop(settings, "device")
     col.prop(settings, "use_lobes")
     col.prop(settings, "alpha")
+    col.prop(settings, "test_build")
 
 
 def draw_run(layout, context, settings) -> None:

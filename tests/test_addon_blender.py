@@ -14,8 +14,6 @@ bpy = pytest.importorskip("bpy")
 
 import blender_addon  # noqa: E402
 import welch_core  # noqa: E402
-from batch.jobs.job import RenderJob  # noqa: E402
-from batch.jobs.launch import Command  # noqa: E402
 from blender_addon import checks, results, runner, session, ui  # noqa: E402
 from blender_addon.state import RunFolder  # noqa: E402
 from blender_addon.state import current as state  # noqa: E402
@@ -188,12 +186,15 @@ def test_register_and_unregister_twice():
 
 def test_settings_defaults_and_limits(scene):
     settings = scene.welch_bias
-    assert (settings.mode, settings.passes, settings.tile) == ("CURRENT_WITH_OVERRIDES", 32, 32)
+    # The command line's defaults (python -m batch check).
+    assert (settings.mode, settings.max_passes, settings.tile, settings.paired) == ("CURRENT_WITH_OVERRIDES", 512, 16,
+                                                                                   True)  # fmt: skip
+    assert settings.tolerance == pytest.approx(1.0) and settings.test_build == ""
     assert session.alpha_of(settings) == 0.01  # a single-precision property, rounded before use
-    settings.passes = 1
+    settings.max_passes = 1
     settings.alpha = 0.9
     settings.opacity = 2.0
-    assert (settings.passes, settings.alpha, settings.opacity) == (2, 0.5, 1.0)
+    assert (settings.max_passes, settings.alpha, settings.opacity) == (2, 0.5, 1.0)
     with pytest.raises(TypeError):
         settings.mode = "current"  # identifiers are upper case
     bpy.ops.welch_bias.override_add(text=" cycles.blur_glossy=0 ")
@@ -210,11 +211,16 @@ def test_settings_defaults_and_limits(scene):
 def test_checks_of_the_setup(scene, tmp_path):
     settings = scene.welch_bias
     settings.tile = TILE
+    assert checks.setup_problems(settings, scene) == [
+        "No overrides: both sides would be the same renders; add an override, or turn Paired off to check the "
+        "scene against itself on other seeds"
+    ]
+    settings.paired = False
     assert checks.setup_problems(settings, scene) == []
     scene.render.engine = "BLENDER_EEVEE"
     assert checks.setup_warnings(settings, scene) == [
         "Scene 'Welch Test Scene' uses BLENDER_EEVEE: the passes are rendered with Cycles",
-        "No overrides: both sides render the same settings (a check of the test itself)",
+        "No overrides: the scene against itself on other seeds (a check of the test itself)",
     ]
     settings.tile = 128
     assert checks.setup_problems(settings, scene) == [
@@ -390,16 +396,26 @@ def test_panel_with_overrides_and_an_error(scene):
     assert state.last_error in layout.texts()
 
 
+def hanging_run(tmp_path) -> runner.CheckRun:
+    """A check whose render processes start and never render (a Blender that answers --version and waits)."""
+    from batch.cli.commands import build_parser
+    from batch.decide.check import check_job_from_args
+
+    fake = tmp_path / "blender"
+    fake.write_text("#!/bin/sh\nif [ \"$1\" = --version ]; then echo 'Blender 4.5.4 LTS'; exit 0; fi\nsleep 60\n")
+    fake.chmod(0o755)
+    argv = ["check", "--scene", "corner", "--unpaired", "--blender", str(fake), "--out", str(tmp_path / "run")]
+    return runner.CheckRun(check_job_from_args(build_parser().parse_args(argv)))
+
+
 def test_panel_and_status_bar_while_running(scene, tmp_path):
-    side = runner.Side("Reference", RenderJob(out=str(tmp_path / "r.npz"), seeds=range(4), blend="x.blend"))
-    command = Command([sys.executable, "-c", "import time; time.sleep(60)"], {}, str(tmp_path))
-    state.session = runner.Session([side, side], [command, command])
+    state.session = hanging_run(tmp_path)
     state.run = RunFolder(dir=str(tmp_path), reference="", test="", alpha=0.01, key=())
     try:
         state.session.poll()
         layout = draw_panel()
         progress = [kw for kind, kw in layout.calls if kind == "progress"]
-        assert progress == [{"factor": 0.0, "text": "Reference: starting"}]
+        assert progress == [{"factor": 0.0, "text": "Starting the renders"}]
         assert [op["idname"] for op in layout.operators()][-1] == "welch_bias.cancel"
         status = FakeLayout()
         ui.draw_status(SimpleNamespace(layout=status), bpy.context)
@@ -413,7 +429,7 @@ def test_panel_and_status_bar_while_running(scene, tmp_path):
             state.session.cancel()
     assert state.session.state == runner.CANCELLED and state.resumable == state.run
     layout = draw_panel()
-    assert "Cancelled" in layout.texts()
+    assert "Stopped" in layout.texts()
     assert [op["text"] for op in layout.operators()][-1] == "Run"  # other settings: nothing to resume
     state.resumable = RunFolder(**{**vars(state.run), "key": session.settings_key(scene.welch_bias, scene)})
     resume = draw_panel().operators()[-1]
@@ -421,13 +437,13 @@ def test_panel_and_status_bar_while_running(scene, tmp_path):
 
 
 def test_disabling_the_addon_stops_a_running_render(scene, tmp_path):
-    side = runner.Side("Reference", RenderJob(out=str(tmp_path / "r.npz"), seeds=range(4), blend="x.blend"))
-    command = Command([sys.executable, "-c", "import time; time.sleep(60)"], {}, str(tmp_path))
-    running = state.session = runner.Session([side], [command])
+    running = state.session = hanging_run(tmp_path)
     running.poll()
+    processes = [side.process.popen for side in running.check.rendered]
+    assert all(p.poll() is None for p in processes)
     blender_addon.unregister()
     try:
-        assert running.state == runner.CANCELLED and running.process.popen.poll() is not None
+        assert running.state == runner.CANCELLED and all(p.poll() is not None for p in processes)
         assert state.session is None
     finally:
         blender_addon.register()
@@ -478,14 +494,12 @@ def test_panel_in_blender_34_uses_boxes_and_block_bars(scene, tmp_path):
 
 
 def test_status_bar_in_blender_34_shows_the_progress_as_text(scene, tmp_path):
-    side = runner.Side("Reference", RenderJob(out=str(tmp_path / "r.npz"), seeds=range(4), blend="x.blend"))
-    command = Command([sys.executable, "-c", "import time; time.sleep(60)"], {}, str(tmp_path))
-    state.session = runner.Session([side], [command])
+    state.session = hanging_run(tmp_path)
     try:
         state.session.poll()
         status = FakeLayout34()
         ui.draw_status(SimpleNamespace(layout=status), bpy.context)
-        assert status.texts() == ["Reference: starting (0%)"]
+        assert status.texts() == ["Starting the renders (0%)"]
         assert [op["idname"] for op in status.operators()] == ["welch_bias.cancel"]
     finally:
         state.session.cancel()

@@ -1,7 +1,9 @@
-"""The whole flow through the operator on the bpy module: set up the corner scene, render both sides with the
-batch tool as subprocesses, and check the verdict, the result image and that the user's file is untouched."""
+"""The whole flow through the operator on the bpy module: set up the corner scene, run the command line's check
+engine on it (both sides rendered by the batch tool as subprocesses, looked at until decided), and check the
+verdict, the report it writes, the result image and that the user's file is untouched."""
 
 import hashlib
+import json
 import tempfile
 import time
 from pathlib import Path
@@ -20,7 +22,7 @@ from blender_addon.state import current as state  # noqa: E402
 
 SIZE = 64  # the corner scene's default resolution
 TILE = 16
-PASSES = 8
+MAX_PASSES = 64
 
 
 @pytest.fixture(scope="module")
@@ -50,7 +52,7 @@ def _settings(scene, overrides):
     settings.overrides.clear()
     for text in overrides:
         settings.overrides.add().text = text
-    settings.passes, settings.spp, settings.tile, settings.first_seed = PASSES, 1, TILE, 0
+    settings.max_passes, settings.spp, settings.tile, settings.paired = MAX_PASSES, 1, TILE, True
     return settings
 
 
@@ -64,8 +66,12 @@ def test_run_renders_both_sides_and_shows_a_biased_map(corner):
 
     assert state.session.state == runner.FINISHED
     assert state.result["verdict"] == "biased", state.result
-    assert state.result["n_ref"] == state.result["n_test"] == PASSES
+    passes = state.session.result[0].passes
+    assert state.result["n_ref"] == state.result["n_test"] == passes < MAX_PASSES  # stopped when decided
     assert state.result["tiles"]["total"] == (SIZE // TILE) ** 2
+    run_dir = Path(state.run.dir)
+    report = (run_dir / "report.json").read_text()  # what `python -m batch check` writes, the panel's numbers
+    assert f'"sentence": "{state.result["sentence"]}"' in report and state.result["check"]["passes"] == passes
     image = bpy.data.images[state.result["image"]]
     assert tuple(image.size) == (SIZE, SIZE)
     pixels = np.empty(SIZE * SIZE * 4, np.float32)
@@ -73,35 +79,30 @@ def test_run_renders_both_sides_and_shows_a_biased_map(corner):
     rgb = pixels.reshape(SIZE, SIZE, 4)[..., :3]
     assert np.isfinite(rgb).all() and rgb.std() > 0.01 and 0.0 <= rgb.min() and rgb.max() <= 1.0
 
-    run_dir = Path(state.run.dir)
     assert (run_dir / "reference.npz").is_file() and (run_dir / "test.npz").is_file()
     assert not (run_dir / "scene.blend").exists()  # the temporary copy is gone
     assert bpy.data.filepath == str(user_file) and _digest(user_file) == before
 
 
 @pytest.mark.slow
-def test_paired_run_detects_a_brighter_light(corner):
+def test_an_unpaired_run_detects_a_brighter_light(corner):
     scene, _ = corner
     # The startup file has a light named "Light" too, so the corner's light data may be "Light.001".
     light = next(o.data for o in scene.objects if o.type == "LIGHT")
-    settings = _settings(scene, [f'lights["{light.name}"].energy={light.energy * 1.1}'])
-    settings.paired = True
-    try:
-        assert bpy.ops.welch_bias.run() == {"FINISHED"}
-    finally:
-        settings.paired = False
-    assert state.result["test"] == "paired"
-    assert state.result["verdict"] == "biased"
+    settings = _settings(scene, [f'lights["{light.name}"].energy={light.energy * 1.3}'])
+    settings.paired = False
+    assert bpy.ops.welch_bias.run() == {"FINISHED"}
+    assert state.result["test"] == "welch" and state.result["verdict"] == "biased"
 
 
 @pytest.mark.slow
 def test_an_override_that_does_not_resolve_fails_in_one_line(corner):
     scene, _ = corner
     _settings(scene, ["cycles.no_such_setting=1"])
-    with pytest.raises(RuntimeError, match=r"Test run failed \(exit code 2\): .*no_such_setting"):
+    with pytest.raises(RuntimeError, match=r"test side: .*no_such_setting"):
         bpy.ops.welch_bias.run()
     assert "\n" not in state.last_error
-    assert state.resumable is not None and Path(state.resumable.reference).is_file()
+    assert state.resumable is not None and Path(state.resumable.dir, "check.json").is_file()
     assert state.result is None
 
 
@@ -111,7 +112,7 @@ def test_cancel_then_resume_completes_the_run(corner):
     settings = _settings(scene, [f"{scenes.WALL_COLOR_PATH}=0.3,0.3,0.3,1"])
     started = session.start(bpy.context, settings, resume=False)
     deadline = time.monotonic() + 60
-    while started.poll() == runner.RUNNING and started.progress.done < 1 and time.monotonic() < deadline:
+    while started.poll() == runner.RUNNING and started.passes < 1 and time.monotonic() < deadline:
         time.sleep(0.01)
     assert started.state == runner.RUNNING
     assert bpy.ops.welch_bias.cancel() == {"FINISHED"}
@@ -121,5 +122,5 @@ def test_cancel_then_resume_completes_the_run(corner):
 
     assert bpy.ops.welch_bias.run(resume=True) == {"FINISHED"}
     assert state.run.dir == run_dir  # the same statistics files, continued
-    assert state.result["n_ref"] == state.result["n_test"] == PASSES
     assert state.result["verdict"] == "biased"
+    assert json.loads((Path(run_dir) / "check.json").read_text())["looks"][-1]["verdict"] == "biased"

@@ -190,7 +190,7 @@ GUI_SCRIPT = textwrap.dedent(
             scene = scenes.build_scene("corner")
             settings = scene.welch_bias
             settings.overrides.add().text = f"{scenes.WALL_COLOR_PATH}={TEST_WALLS}"
-            settings.passes, settings.spp, settings.tile = 8, 1, 16
+            settings.max_passes, settings.spp, settings.tile = 64, 1, 16
             bpy.ops.wm.save_as_mainfile(filepath=os.path.join(WORK, "user.blend"))
         yield 0.3  # the window shows the new scene from the next event loop on
         state = sys.modules[MODULE + ".blender_addon.state"].current
@@ -204,14 +204,18 @@ GUI_SCRIPT = textwrap.dedent(
         with bpy.context.temp_override(window=window, area=properties, region=region(properties)):
             report["run"] = sorted(bpy.ops.welch_bias.run("INVOKE_DEFAULT"))
         log(f"run: {report['run']}")
-        while state.result is None:
+        live = []  # the map shown after each look while the check goes on
+        while state.running() or state.result is None:
             session = state.session
-            if state.last_error or session is None or session.state != "RUNNING":
+            if state.last_error or session is None or session.state not in ("RUNNING", "FINISHED"):
                 raise RuntimeError(f"the run ended without a result: {state.last_error or session and session.state}")
             if time.monotonic() - started > RUN_TIMEOUT:
                 raise RuntimeError(f"no result after {RUN_TIMEOUT} s: {session.status_text()}")
             report["statuses"].append(session.status_text())  # this timer runs while the renders go on
+            if state.running() and state.result is not None:
+                live.append(state.result["verdict_title"])
             yield 0.2
+        report["live"] = live
         result = state.result
         log(f"verdict: {result['verdict']}")
         with bpy.context.temp_override(window=window, area=map_editor, region=region(map_editor)):
@@ -244,11 +248,11 @@ GUI_SCRIPT = textwrap.dedent(
             with bpy.context.temp_override(window=window, area=area, region=region(area)):
                 bpy.ops.image.view_all(fit_view=True)
         yield 0.3
-        # The add-on's panel comes last but for three closed ones: scroll to the end, then back over those.
+        # The add-on's panel comes last but for three closed ones: scroll to the end, then back to its verdict.
         with bpy.context.temp_override(window=window, area=panel_area, region=region(panel_area)):
             for _ in range(30):
                 bpy.ops.view2d.scroll_down(page=True)
-            for _ in range(4):
+            for _ in range(7):
                 bpy.ops.view2d.scroll_up(deltay=40)
         yield 1.0
 
@@ -347,6 +351,8 @@ def test_run_in_a_blender_34_window_shows_the_verdict_and_the_overlay(tmp_path, 
     assert report["install"] == report["enable"] == ["FINISHED"]
     assert report["run"] == ["RUNNING_MODAL"] and report["statuses"]  # Blender stayed responsive while rendering
     assert report["session"] == "FINISHED" and report["verdict"] == "biased"
+    # The live map after each look says there is no verdict yet, until the look that decides.
+    assert report["live"] and all(t.startswith("No Verdict Yet") or t == "Biased" for t in report["live"])
     assert report["tiles"]["total"] == (SIZE // TILE) ** 2
     assert report["image"] == {"name": "Welch P-Value Map", "size": [SIZE, SIZE], "shown": True}
     assert report["frame_tile"] == report["show_result"] == ["FINISHED"]

@@ -1,149 +1,86 @@
-"""blender_addon.runner without Blender: seeds of the two sides, sessions of real subprocesses, cancel."""
+"""blender_addon.runner without Blender: the add-on's check (the command line's engine, stepped from a timer),
+its progress and status line, a real check polled to its verdict, a start that fails in one line, Stop keeping
+the state for a resume, and the clean-up of old runs."""
 
-import os
-import sys
-import textwrap
+from __future__ import annotations
+
+import json
 import time
-from pathlib import Path
 
 import pytest
 
-from batch.jobs.job import RenderJob
-from batch.jobs.launch import Command
+from batch.cli.commands import build_parser
+from batch.decide.check import check_job_from_args
+from batch.jobs import protocol
 from blender_addon import runner
 
-ROOT = Path(__file__).resolve().parent.parent
+WALLS = 'materials["Walls"].node_tree.nodes["Diffuse BSDF"].inputs["Color"].default_value=0.3,0.3,0.3,1'
 
 
-def test_seed_ranges_are_disjoint_unless_paired():
-    assert runner.seed_ranges(0, 8, paired=False) == (range(0, 8), range(8, 16))
-    assert runner.seed_ranges(100, 3, paired=False) == (range(100, 103), range(103, 106))
-    assert runner.seed_ranges(5, 4, paired=True) == (range(5, 9), range(5, 9))
+def check_run(tmp_path, *args) -> runner.CheckRun:
+    argv = ["check", "--scene", "corner", "--resolution", "32", "32", *args, "--out", str(tmp_path / "run")]
+    return runner.CheckRun(check_job_from_args(build_parser().parse_args(argv)))
 
 
-@pytest.mark.parametrize("first, passes", [(-1, 4), (0, 0), (2**31 - 4, 4)])
-def test_seed_ranges_reject_bad_input(first, passes):
-    with pytest.raises(ValueError, match="seeds"):
-        runner.seed_ranges(first, passes, paired=False)
+def fake_blender(tmp_path, body: str) -> str:
+    path = tmp_path / "blender"
+    path.write_text("#!/bin/sh\nif [ \"$1\" = --version ]; then echo 'Blender 4.5.4 LTS'; exit 0; fi\n" + body)
+    path.chmod(0o755)
+    return str(path)
 
 
-def test_overall_fraction_counts_both_sides():
-    assert runner.overall_fraction(0, 2, 0, 0) == 0.0
-    assert runner.overall_fraction(0, 2, 4, 8) == 0.25
-    assert runner.overall_fraction(1, 2, 0, 8) == 0.5
-    assert runner.overall_fraction(1, 2, 8, 8) == 1.0
-    assert runner.overall_fraction(2, 2, 0, 0) == 1.0
-    assert runner.overall_fraction(0, 1, 9, 8) == 1.0
+def test_side_progress_counts_a_resumed_sides_passes():
+    side = runner.SideProgress("test")
+    side.emit(protocol.Started(total=64, todo=40, out="t.npz"))
+    assert (side.done, side.total) == (24, 64)
+    side.emit(protocol.PassDone(seed=30, done=25, total=64, seconds=0.1, eta=4.0))
+    assert (side.done, side.seconds) == (25, 0.1)
 
 
-# A stand-in for `python -m batch render`: the same output protocol, no rendering.
-FAKE_BATCH = textwrap.dedent(
-    """
-    import json, sys, time
-    out, passes, mode = sys.argv[1], int(sys.argv[2]), sys.argv[3]
-    print("Blender 5.0 (junk line)", flush=True)
-    print(json.dumps({"event": "start", "total": passes, "todo": passes, "out": out}), flush=True)
-    for k in range(1, passes + 1):
-        print("Fra:1 | Sample 1/1", flush=True)
-        print(json.dumps({"event": "pass", "done": k, "total": passes, "seed": k, "seconds": 0.01,
-                          "eta": 0.01 * (passes - k)}), flush=True)
-        if mode == "slow":
-            open(out, "w").write(str(k))  # a checkpoint after every pass
-            time.sleep(0.2)
-    if mode == "error":
-        print(json.dumps({"event": "error", "message": "override cycles.nope does not resolve"}), flush=True)
-        sys.exit(2)
-    if mode == "crash":
-        print("Traceback (most recent call last):", file=sys.stderr)
-        print("RuntimeError: renderer exploded", file=sys.stderr)
-        sys.exit(1)
-    if mode == "warn":
-        print(json.dumps({"event": "warning", "message": "pass 3 has NaN pixels"}), flush=True)
-    open(out, "w").write("stats")
-    print(json.dumps({"event": "done", "out": out, "passes": passes}), flush=True)
-    """
-)
-
-
-def _session(tmp_path, modes, passes=4):
-    temp_copy = tmp_path / "scene.blend"
-    temp_copy.write_text("copy")
-    sides, commands = [], []
-    for label, mode in zip(("Reference", "Test"), modes, strict=False):
-        out = str(tmp_path / f"{label.lower()}.npz")
-        sides.append(runner.Side(label, RenderJob(out=out, seeds=range(4), blend=str(temp_copy))))
-        argv = [sys.executable, "-c", FAKE_BATCH, out, str(passes), mode]
-        commands.append(Command(argv, dict(os.environ), str(tmp_path)))
-    return runner.Session(sides, commands, temporary_files=[str(temp_copy)]), temp_copy
-
-
-def test_session_runs_both_sides_and_tracks_progress(tmp_path):
-    # "slow" on the first side: a loaded machine must not let it finish within the first poll.
-    session, temp_copy = _session(tmp_path, ["slow", "warn"])
-    assert session.poll() == runner.RUNNING
-    assert session.status_text().startswith("Reference:")
-    fractions = []
-    while session.poll() == runner.RUNNING:
-        fractions.append(session.fraction)
+@pytest.mark.slow
+def test_a_check_is_polled_to_its_verdict_look_by_look(tmp_path):
+    pytest.importorskip("bpy")
+    run = check_run(tmp_path, "--set", WALLS)  # walls 0.3 instead of 0.2: found in a few passes
+    statuses, looks = set(), []
+    deadline = time.monotonic() + 300
+    while run.poll() == runner.RUNNING and time.monotonic() < deadline:
+        statuses.add(run.status_text())
+        taken = run.take_look()
+        if taken is not None:
+            looks.append(taken[0])
         time.sleep(0.01)
-    assert session.state == runner.FINISHED, session.error
-    assert fractions == sorted(fractions) and session.fraction == 1.0
-    assert (tmp_path / "reference.npz").is_file() and (tmp_path / "test.npz").is_file()
-    assert not temp_copy.exists()
-    assert session.warnings == ["Test: pass 3 has NaN pixels"]
-    assert session.status_text() == "Finished"
+    assert run.state == runner.FINISHED and run.fraction == 1.0, run.error
+    look, ref, test = run.result
+    assert look.verdict == "biased" and ref.n == test.n == look.passes
+    assert looks and looks[-1].passes == look.passes  # every look was offered to the live map, the last too
+    assert any(s.startswith("pass ") and "smallest p" in s for s in statuses)
+    state = json.loads((tmp_path / "run" / "check.json").read_text())
+    assert state["looks"][-1]["verdict"] == "biased"  # what `check --resume` would answer with
 
 
-def test_session_reports_the_error_event_of_a_failed_side(tmp_path):
-    session, temp_copy = _session(tmp_path, ["ok", "error"])
-    assert session.wait(timeout=30) == runner.FAILED
-    assert session.error == "Test run failed (exit code 2): override cycles.nope does not resolve"
-    assert temp_copy.exists()  # kept: the run may be resumed with the scene it started from
-    assert session.status_text().startswith("Failed: Test run failed")
+def test_a_build_that_is_not_blender_fails_in_one_line(tmp_path):
+    blender = tmp_path / "blender"
+    blender.write_text("#!/bin/sh\necho hello\n")
+    blender.chmod(0o755)
+    run = check_run(tmp_path, "--unpaired", "--blender", str(blender))
+    assert run.poll() == runner.FAILED
+    assert run.error == f"--blender {blender} is not Blender: --version printed 'hello'"
+    assert run.status_text() == f"Failed: {run.error}"
 
 
-def test_session_reports_stderr_of_a_crash(tmp_path):
-    session, _ = _session(tmp_path, ["crash", "ok"])
-    assert session.wait(timeout=30) == runner.FAILED
-    assert session.error == "Reference run failed (exit code 1): RuntimeError: renderer exploded"
-    assert not (tmp_path / "test.npz").exists()  # the test side never started
-
-
-def test_session_fails_when_the_program_is_missing(tmp_path):
-    side = runner.Side("Reference", RenderJob(out=str(tmp_path / "r.npz"), seeds=range(2), blend="x.blend"))
-    command = Command([str(tmp_path / "no-such-program")], {}, str(tmp_path))
-    session = runner.Session([side], [command])
-    assert session.poll() == runner.FAILED
-    assert session.error.startswith("Reference run could not start: can't start ")
-    assert session.error.endswith("no-such-program: No such file or directory")
-
-
-def test_session_builds_its_commands_from_the_jobs(tmp_path):
-    job = RenderJob(out=str(tmp_path / "r.npz"), seeds=range(2), blend="x.blend", blender="/opt/blender")
-    session = runner.Session([runner.Side("Reference", job)])
-    assert session.commands[0].argv[:3] == ["/opt/blender", "-b", "x.blend"]
-
-
-def test_cancel_terminates_a_running_side_and_keeps_its_checkpoint(tmp_path):
-    session, temp_copy = _session(tmp_path, ["slow", "slow"], passes=1000)
-    deadline = time.monotonic() + 30
-    while session.poll() == runner.RUNNING and session.progress.done < 2 and time.monotonic() < deadline:
-        time.sleep(0.02)
-    assert session.progress.done >= 2
-    process = session.process
+def test_stop_keeps_the_state_and_a_resume_continues_it(tmp_path):
+    blender = fake_blender(tmp_path, "sleep 60\n")  # starts, never renders
+    run = check_run(tmp_path, "--unpaired", "--blender", blender)
+    assert run.poll() == runner.RUNNING and run.status_text() == "Starting the renders"
+    processes = [side.process.popen for side in run.check.rendered]
     started = time.monotonic()
-    session.cancel()
-    assert time.monotonic() - started < 5
-    assert process.popen.poll() is not None
-    assert session.state == runner.CANCELLED and session.poll() == runner.CANCELLED
-    assert temp_copy.exists()
-    assert (tmp_path / "reference.npz").is_file()  # the partial statistics stay for --resume
-    assert 0 < session.fraction < 0.5
-
-
-def test_wait_with_timeout_cancels(tmp_path):
-    session, _ = _session(tmp_path, ["slow"], passes=1000)
-    assert session.wait(timeout=0.5) == runner.CANCELLED
+    run.cancel()
+    assert run.state == runner.CANCELLED and time.monotonic() - started < 10
+    assert all(p.poll() is not None for p in processes)  # the render processes are gone
+    assert (tmp_path / "run" / "check.json").is_file()  # a resume has something to continue
+    again = check_run(tmp_path, "--unpaired", "--blender", blender, "--resume")
+    assert again.poll() == runner.RUNNING
+    assert again.wait(timeout=0.5) == runner.CANCELLED
 
 
 def test_prune_runs_keeps_the_newest_and_protected(tmp_path):

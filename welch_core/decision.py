@@ -181,7 +181,7 @@ class Outcome:
     min_detectable: float | None  # median over tiles of the smallest bias a tile finds with 80 % power
     identical_needed: int  # identical passes that make identical sides `equivalent (bit-identical)`
     reason: str  # why the verdict, in a few words (machine-readable key)
-    significant: np.ndarray = field(repr=False, compare=False, default=None)  # finest tiles found significant
+    significant: np.ndarray = field(repr=False, compare=False, default=None)  # finest tiles outlined (_found_where)
 
     @property
     def claim(self) -> ScaleResult | None:
@@ -288,7 +288,7 @@ def decide(scales, tests, runs, evidence: Evidence, alpha: float, tolerance: flo
         verdict, reason = Verdict.INCONCLUSIVE, "beyond" if beyond else "unbounded"
     else:
         verdict, reason = Verdict.NO_EVIDENCE, "nothing_found"
-    significant_finest = np.asarray(evidence.significant[0]).any(axis=-1)
+    significant_finest = _found_where(scales, evidence.significant)
     return Outcome(
         verdict=verdict,
         decided=decided,
@@ -398,6 +398,20 @@ def _beyond(scales, tests, significant, claim_tile, tolerance) -> bool:
         if np.any(np.asarray(sig) & (rel > tolerance)):
             return True
     return False
+
+
+def _found_where(scales, significant) -> np.ndarray:
+    """The finest tiles the map outlines: those found significant at the finest size where anything was found
+    (the finest tiles themselves if any of them; a bias found only in larger tiles outlines the finest tiles
+    inside those, so a `biased` verdict never comes with an empty map)."""
+    finest = scales[0]
+    ty, tx = finest.tile_pvalues.shape
+    for scale, sig in zip(scales, significant, strict=True):
+        tiles = np.asarray(sig).any(axis=-1)
+        if tiles.any():
+            f = scale.tile // finest.tile
+            return np.repeat(np.repeat(tiles, f, axis=0), f, axis=1)[:ty, :tx]
+    return np.zeros((ty, tx), bool)
 
 
 def _channel_name(channels: int, ch: int) -> str:

@@ -101,7 +101,7 @@ class Check:
     """Runs a `CheckJob` (on `cluster`, a `batch.jobs.side.Cluster`, where given); `run()` returns the final
     `Look` and the final statistics of both sides."""
 
-    def __init__(self, job: CheckJob, progress, cluster: Cluster | None = None, side_progress=None):
+    def __init__(self, job: CheckJob, progress, cluster: Cluster | None = None, side_progress=None, env=None):
         self.job = job
         self.progress = progress
 
@@ -114,7 +114,7 @@ class Check:
                 live = Progress(len(side_job.seeds), label=name, live=True) if progress.live else None
             if cluster is not None:
                 return ClusterSide(name, side_job, cluster, live, warn=progress.warning)
-            return Side(name, side_job, live, warn=progress.warning)
+            return Side(name, side_job, live, warn=progress.warning, env=env)
 
         self.reference, self.test = side("reference", job.reference), side("test", job.test)
         self.rendered = [self.test] if job.fixed_reference else [self.reference, self.test]
@@ -283,6 +283,7 @@ class Check:
         """The check as a generator that never blocks: each step polls the sides once (or makes a look) and yields;
         it returns what `run` returns. Closing it (a Stop in the Blender add-on) stops the sides and keeps the
         state, as an interrupt does."""
+        Path(self.job.out).mkdir(parents=True, exist_ok=True)
         if self.job.resume:
             self._load_state()
         self._save_state()  # before anything renders: a check stopped at once can still be resumed
@@ -403,8 +404,6 @@ def run_check(job: CheckJob, progress, where: Cluster | None = None) -> tuple[wc
     numbers are the last look's; the map and the tiles are the final passes' statistics (descriptive). The passes
     render on `where` (a cluster a suite shares between its cases), else where the job's `workers` or
     `scheduler` say."""
-    from ..present.pipeline import present
-    from ..present.summary import check_record
 
     Path(job.out).mkdir(parents=True, exist_ok=True)
     work = 2 * (job.max_passes or wc.looks.FIRST_LOOK)  # the most passes both sides render
@@ -412,11 +411,20 @@ def run_check(job: CheckJob, progress, where: Cluster | None = None) -> tuple[wc
     with contextlib.nullcontext(where) if where is not None else local as place:
         check = Check(job, progress, place)
         look, ref, test = check.run()
+    return look.outcome.verdict, report_check(check, look, ref, test)[0]
+
+
+def report_check(check: Check, look: wc.Look, ref: wc.TileStats, test: wc.TileStats):
+    """Write the report of a check's final look into its folder: (report.json's content, the comparison of the
+    final passes that the map shows). `run_check` and the Blender add-on both end a check here."""
+    from ..present.pipeline import present
+    from ..present.summary import check_record
+
+    job = check.job
     comparison = wc.compare(ref, test, job.alpha, tolerance=job.tolerance)
     layers = (wc.load_layers(job.reference.out, pixels=False), wc.load_layers(job.test.out, pixels=False))
     record = check_record(job, check.looks, check.plan.max_passes, look)
-    report = present(job.out, comparison, ref, test, outcome=look.outcome, check=record, layers=layers)
-    return look.outcome.verdict, report
+    return present(job.out, comparison, ref, test, outcome=look.outcome, check=record, layers=layers), comparison
 
 
 #: Seeds a side may use under a time budget (the pass budget is fixed once the speed is known).
