@@ -43,7 +43,9 @@ def conclude_check(context, run: runner.CheckRun) -> dict:
     layers = results.layer_comparisons(run.job.reference.out, run.job.test.out, comparison)
     sources = {"reference": run.job.reference.out, "test": run.job.test.out}
     summary = results.store(comparison, reference, test, sources, layers, outcome=look.outcome, report=report)
-    show(context)
+    image = results.refresh(context)
+    results.show_in_image_editor(context, image, sidebar=True)  # the result's place: the editor's sidebar
+    results.save_with_file(context.scene, current.run.key)
     return summary
 
 
@@ -294,6 +296,14 @@ def _stop_on_load(*_args):
     current.reset()
 
 
+@persistent
+def _restore_on_load(*_args):
+    # The last result was saved with the file: the panel shows it again (marked when the settings changed since).
+    scene = bpy.context.scene
+    if scene is not None and hasattr(scene, "welch_bias"):
+        results.restore_from_file(scene)
+
+
 classes = (
     WELCH_BIAS_OT_run,
     WELCH_BIAS_OT_cancel,
@@ -309,6 +319,7 @@ _register_classes, _unregister_classes = bpy.utils.register_classes_factory(clas
 def register():
     _register_classes()
     bpy.app.handlers.load_pre.append(_stop_on_load)
+    bpy.app.handlers.load_post.append(_restore_on_load)
     atexit.register(_stop_running)
 
 
@@ -316,4 +327,5 @@ def unregister():
     _stop_on_load(None)
     atexit.unregister(_stop_running)
     bpy.app.handlers.load_pre.remove(_stop_on_load)
+    bpy.app.handlers.load_post.remove(_restore_on_load)
     _unregister_classes()

@@ -169,11 +169,24 @@ class WELCH_BIAS_PG_settings(bpy.types.PropertyGroup):
     opacity: FloatProperty(
         name="Opacity",
         description="Opacity of the p-value map, in the result image and in the overlay",
-        default=0.6,
+        default=0.4,
         min=0.0,
         max=1.0,
         subtype="FACTOR",
         update=_refresh_result,
+    )
+
+    last_result: StringProperty(
+        name="Last Result",
+        description="The summary of the last finished run, kept with the file",
+        default="",
+        options={"HIDDEN"},
+    )
+    last_result_key: StringProperty(
+        name="Last Result Settings",
+        description="The settings the last result was made with (a changed one makes it stale)",
+        default="",
+        options={"HIDDEN"},
     )
 
     def enabled_overrides(self) -> list[str]:

@@ -157,8 +157,9 @@ def _image_editors(context):
                 yield area
 
 
-def show_in_image_editor(context, image) -> bool:
-    """Show ``image`` in an Image Editor: an open one, else the render window Blender opens with F11."""
+def show_in_image_editor(context, image, sidebar: bool = False) -> bool:
+    """Show ``image`` in an Image Editor: an open one, else the render window Blender opens with F11. With
+    `sidebar` (a finished run), also open the editor's sidebar, where the result is, and fit the image to it."""
     area = next(_image_editors(context), None)
     if area is None and not bpy.app.background:
         try:
@@ -168,7 +169,16 @@ def show_in_image_editor(context, image) -> bool:
         area = next(_image_editors(context), None)
     if area is None:
         return False
-    area.spaces.active.image = image
+    space = area.spaces.active
+    space.image = image
+    if sidebar:
+        space.show_region_ui = True
+        region = next((r for r in area.regions if r.type == "WINDOW"), None)
+        try:
+            with context.temp_override(area=area, region=region, space_data=space):
+                bpy.ops.image.view_all(fit_view=True)
+        except (RuntimeError, TypeError):
+            pass  # no drawable region (background mode)
     area.tag_redraw()
     return True
 
@@ -193,6 +203,29 @@ def frame_tile(context, x: int, y: int, size: int) -> bool:
     except RuntimeError:
         return False  # no drawable region (background mode): the outline in the image still marks the tile
     area.tag_redraw()
+    return True
+
+
+def save_with_file(scene, key: tuple) -> None:
+    """Keep the last result's summary in the scene (saved with the .blend), with the settings it was made with."""
+    import json
+
+    scene.welch_bias.last_result = json.dumps(current.result, default=str)
+    scene.welch_bias.last_result_key = repr(key)
+
+
+def restore_from_file(scene) -> bool:
+    """The summary saved with the file, back into the panel (its map needs the run's statistics: not kept)."""
+    import json
+
+    text = scene.welch_bias.last_result
+    if current.result is not None or not text:
+        return False
+    try:
+        current.result = json.loads(text)
+    except ValueError:
+        return False
+    current.result["saved"] = True
     return True
 
 

@@ -174,11 +174,18 @@ def draw_top_tiles(layout, result) -> None:
         row.label(text=f"{fmt.percent(tile['rel_diff'], 1)} {interval}")
 
 
-def draw_result(layout, settings) -> None:
+def draw_result(layout, settings, scene=None) -> None:
     result = current.result
     if result is None:
         layout.label(text="No result yet")
         return
+    if result.get("saved"):
+        layout.label(text="Saved with the file (run again for the map)", icon="FILE_TICK")
+    key = current.run.key if current.run is not None and not result.get("saved") else settings.last_result_key
+    if scene is not None and key and str(key) != str(settings_key(settings, scene)) and not current.running():
+        box = layout.box()
+        box.alert = True
+        box.label(text="Stale: the settings changed since this result", icon="ERROR")
     draw_verdict(layout, result)
     draw_display(layout, settings)
     for idname, title, draw in (
@@ -203,22 +210,21 @@ class WELCH_BIAS_MT_override_presets(bpy.types.Menu):
             self.layout.operator("welch_bias.override_add", text=label).text = text
 
 
-class WelchBiasPanel:
-    """What both panels draw; subclasses say where."""
+def draw_panel(layout, context, setup: bool) -> None:
+    """The add-on's panel: the setup (in the Properties editor), the run and its result."""
+    layout.use_property_split = True
+    layout.use_property_decorate = False
+    settings = context.scene.welch_bias
+    if setup:
+        draw_setup(layout, settings)
+    draw_run(layout, context, settings)
+    draw_result(layout, settings, context.scene)
+
+
+class WELCH_BIAS_PT_render(bpy.types.Panel):
+    """The setup, the run and its result, in Properties > Render."""
 
     bl_label = "Welch Bias Test"
-
-    def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
-        settings = context.scene.welch_bias
-        draw_setup(layout, settings)
-        draw_run(layout, context, settings)
-        draw_result(layout, settings)
-
-
-class WELCH_BIAS_PT_render(WelchBiasPanel, bpy.types.Panel):
     bl_space_type = "PROPERTIES"
     bl_region_type = "WINDOW"
     bl_context = "render"
@@ -228,11 +234,20 @@ class WELCH_BIAS_PT_render(WelchBiasPanel, bpy.types.Panel):
     def poll(cls, context):
         return context.engine in cls.COMPAT_ENGINES
 
+    def draw(self, context):
+        draw_panel(self.layout, context, setup=True)
 
-class WELCH_BIAS_PT_image_editor(WelchBiasPanel, bpy.types.Panel):
+
+class WELCH_BIAS_PT_image_editor(bpy.types.Panel):
+    """The run and its result beside the image, in the Image Editor's sidebar."""
+
+    bl_label = "Welch Bias Test"
     bl_space_type = "IMAGE_EDITOR"
     bl_region_type = "UI"
     bl_category = "Welch"
+
+    def draw(self, context):
+        draw_panel(self.layout, context, setup=False)
 
 
 def draw_status(self, _context):

@@ -164,9 +164,9 @@ class FakeLayout34(FakeLayout):
         return super().__getattribute__(name)
 
 
-def draw_panel(layout_type=FakeLayout):
+def draw_panel(layout_type=FakeLayout, setup=True):
     layout = layout_type()
-    ui.WelchBiasPanel.draw(SimpleNamespace(layout=layout), bpy.context)
+    ui.draw_panel(layout, bpy.context, setup)
     return layout
 
 
@@ -472,7 +472,9 @@ def test_panel_with_a_result(scene, tmp_path, bias, verdict):
     )
     image_editor = FakeLayout()
     ui.WELCH_BIAS_PT_image_editor.draw(SimpleNamespace(layout=image_editor), bpy.context)
-    assert image_editor.texts() == texts
+    assert image_editor.texts() == texts  # the result beside the image, as in the Properties editor...
+    props = {kw["prop"] for kind, kw in image_editor.calls if kind == "prop"}
+    assert "mode" not in props and "map_mode" in props  # ...without the setup, with the map's controls
 
 
 def test_panel_in_blender_34_uses_boxes_and_block_bars(scene, tmp_path):

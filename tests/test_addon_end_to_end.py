@@ -7,6 +7,7 @@ import json
 import tempfile
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -40,6 +41,26 @@ def corner(tmp_path_factory):
     bpy.data.scenes.remove(scene)
     blender_addon.unregister()
     tempfile.tempdir = saved_tempdir
+
+
+class RecordingLayout:
+    """Just enough of a UILayout to collect the labels a draw function writes."""
+
+    def __init__(self):
+        self.labels: list[str] = []
+        self.alert = False
+
+    def label(self, text="", **_):
+        self.labels.append(text)
+
+    def panel(self, *_args, **_kwargs):
+        return self, self
+
+    def operator(self, *_args, **_kwargs):
+        return SimpleNamespace()
+
+    def __getattr__(self, _name):
+        return lambda *args, **kwargs: self
 
 
 def _digest(path: Path) -> str:
@@ -80,6 +101,24 @@ def test_run_renders_both_sides_and_shows_a_biased_map(corner):
     assert np.isfinite(rgb).all() and rgb.std() > 0.01 and 0.0 <= rgb.min() and rgb.max() <= 1.0
 
     assert (run_dir / "reference.npz").is_file() and (run_dir / "test.npz").is_file()
+
+    # The result is kept with the file: after a reload the panel shows it again, and says so when the settings
+    # changed since.
+    from blender_addon import results, ui
+
+    saved = json.loads(scene.welch_bias.last_result)
+    assert saved["sentence"] == state.result["sentence"]
+    state.reset()
+    assert results.restore_from_file(scene) and state.result["sentence"] == saved["sentence"]
+    layout = RecordingLayout()
+    ui.draw_result(layout, scene.welch_bias, scene)
+    assert "Saved with the file (run again for the map)" in layout.labels
+    assert not any(t.startswith("Stale") for t in layout.labels)
+    scene.welch_bias.spp = 2
+    layout = RecordingLayout()
+    ui.draw_result(layout, scene.welch_bias, scene)
+    assert "Stale: the settings changed since this result" in layout.labels
+    scene.welch_bias.spp = 1
     assert not (run_dir / "scene.blend").exists()  # the temporary copy is gone
     assert bpy.data.filepath == str(user_file) and _digest(user_file) == before
 
