@@ -189,11 +189,16 @@ def chart6_findings(c6: dict) -> list[str]:
     )  # fmt: skip
     stuck = [r for r in c6["rows"] if r["inconclusive_share"] >= 0.05]
     for r in stuck:
+        bound = r["inconclusive_median_ruled_out"]
+        scale = f"{r['inconclusive_tile']}²"
+        rules = (f"they rule out a bias beyond ±{_pct(bound, 2)} (median) at the {scale} scale" if bound else
+                 f"at the {scale} scale some tile is not bounded at all (its interval spans more than ±1000 %: a "
+                 "dark tile, or one of fireflies)")  # fmt: skip
         out.append(
             f"- **{r['label']}**: {_pct(r['inconclusive_share'], 0)} of the runs spend the budget of "
-            f"{r['max_passes']} passes a side and end `inconclusive`; they rule out a bias beyond "
-            f"±{_pct(r['inconclusive_median_ruled_out'] or float('nan'), 2)} (median) at the {r['inconclusive_tile']}² "
-            "scale, but not ±1 %: at 1 spp its noise needs more passes for a 1 % bound than the pool holds"
+            f"{r['max_passes']} passes a side and end `inconclusive`; {rules}, so not every 16² tile within ±1 %, "
+            "the claim `equivalent` makes: at 1 spp its noise needs more passes for a 1 % bound in every tile than "
+            "the pool holds (chart 8: the passes each scale needs)"
             + (f" (tiles tested at no scale at the end: median {_n(r['inconclusive_uncovered_median'])})"
                if r["inconclusive_uncovered_median"] else ", with every tile testable at some scale")
             + "."

@@ -40,6 +40,13 @@ def goal_lines(f: dict) -> list[str]:
                 + ("**met**" if c["equivalent_share"] >= 0.95 else "**not met**")
                 + f": {_pct(c['equivalent_share'])} of {c['runs']} runs, median {_n(c['equivalent_median_passes'])} "
                 f"passes a side; `biased` {c['biased']} of {c['runs']}."
+                + (
+                    ""
+                    if c["equivalent_share"] >= 0.95
+                    else " `equivalent` now claims every 16² tile within ±1 %, which "
+                    f"{c['max_passes']} passes a side of 1 spp do not reach in the darkest tiles; `--equivalence-tile` "
+                    "claims it for larger tiles, and chart 8 measures the passes each size needs."
+                )
             )
     if "chart7" in f:
         multi = [r for r in f["chart7"]["glass"] if r["tile"] == "multi"]
@@ -60,8 +67,10 @@ def goal_lines(f: dict) -> list[str]:
                 text += (f" `check` on the glass A/A ends `inconclusive` in {_pct(glass6['inconclusive_share'], 0)} of "
                          f"its runs, not for the tiles (median tiles tested at no scale: "
                          f"{_n(glass6['inconclusive_uncovered_median'])}) but because ±1 % is not reached within "
-                         f"{glass6['max_passes']} passes a side (it rules out ±"
-                         f"{_pct(glass6['inconclusive_median_ruled_out'] or float('nan'), 2)})")  # fmt: skip
+                         f"{glass6['max_passes']} passes a side in every 16² tile"
+                         + (f" (it rules out ±{_pct(glass6['inconclusive_median_ruled_out'], 2)})"
+                            if glass6["inconclusive_median_ruled_out"] else
+                            " (some caustic tile is not bounded at all)"))  # fmt: skip
                 text += "."
             out.append(text)
     if "chart3" in f:
