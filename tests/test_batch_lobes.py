@@ -91,12 +91,12 @@ def write_layered_passes(folder, seeds, glossy_scale=1.0, drop=None):
     return paths
 
 
-def ingest_layers(tmp_path, name, seeds, glossy_scale=1.0):
+def ingest_layers(tmp_path, name, seeds, glossy_scale=1.0, layers="diffuse,glossy"):
     folder = tmp_path / name
     folder.mkdir()
     paths = write_layered_passes(folder, seeds, glossy_scale)
     out = str(tmp_path / f"{name}.npz")
-    args = ["ingest", *paths, "--spp", "1", "--tile", "8", "--layers", "diffuse,glossy", "--out", out]
+    args = ["ingest", *paths, "--spp", "1", "--tile", "8", "--layers", layers, "--out", out]
     assert cli.main([*args, "--seeds", ",".join(map(str, seeds))]) == 0
     return out
 
@@ -127,6 +127,21 @@ def test_ingest_merge_and_compare_test_every_layer(tmp_path, capsys):
     wc.save_stats(plain, wc.load_stats(more))
     assert cli.main(["merge", ref, str(plain), "--out", str(tmp_path / "m2.npz")]) == Exit.USAGE
     assert "its layers (none) differ from" in capsys.readouterr().err
+
+
+def test_layers_only_one_run_has_are_named_as_not_tested(tmp_path, capsys):
+    ref = ingest_layers(tmp_path, "ref", range(0, 16))
+    test = ingest_layers(tmp_path, "test", range(100, 116), layers="diffuse")
+    cli.main(["compare", ref, test, "--out", str(tmp_path / "r")])
+    assert "not tested: glossy (only the reference has it)" in capsys.readouterr().out
+    report = json.loads((tmp_path / "r" / "report.json").read_text())
+    assert [row["name"] for row in report["layers"]["layers"]] == ["diffuse"]
+    assert report["layers"]["untested"] == {"reference": ["glossy"], "test": []}
+    assert "not tested: glossy (only the reference has it)" in (tmp_path / "r" / "report.html").read_text()
+    plain = tmp_path / "plain.npz"  # no layers at all on the test side
+    wc.save_stats(plain, wc.load_stats(test))
+    cli.main(["compare", ref, str(plain), "--out", str(tmp_path / "p")])
+    assert "not tested: diffuse, glossy (only the reference has them)" in capsys.readouterr().out
 
 
 def test_ingest_names_a_missing_layer(tmp_path, capsys):

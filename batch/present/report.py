@@ -21,7 +21,7 @@ import numpy as np
 
 from .._siblings import welch_core as wc
 from . import fmt
-from .summary import design_line
+from .summary import design_line, untested_lines
 
 #: The longest side of the pictures in the page (what statistics files store as their preview); tiles are drawn
 #: at their true place over them.
@@ -156,6 +156,7 @@ def layers_section(summary: dict | None, comparisons: dict[str, wc.Comparison]) 
         notes.append(f"each layer is tested at alpha {summary['alpha']:.3g} (Bonferroni over the layers)")
     if summary["explanation"]:
         notes.append(summary["explanation"])
+    notes += untested_lines(summary)
     for side, check in summary["component_sum"].items():
         if check is None:
             notes.append(f"{side}: the components were not all rendered, so their sum was not checked")

@@ -355,8 +355,13 @@ def layers_summary(
     from ..jobs.lobes import COMPONENT_SUM_TOLERANCE, COMPONENTS
 
     names = [name for name in ref_layers if name in test_layers]
+    # Layers only one run has: not tested, and said so (a light group renamed on one side, --lobes on one side).
+    untested = {"reference": [n for n in ref_layers if n not in test_layers],
+                "test": [n for n in test_layers if n not in ref_layers]}  # fmt: skip
     if not names:
-        return None
+        return None if not any(untested.values()) else (
+            {"layers": [], "alpha": combined.alpha, "after_looks": after_looks, "explained_by": [],
+             "explanation": None, "component_sum": {}, "untested": untested}, {})  # fmt: skip
     lit = [n for n in names if np.any(ref_layers[n].sums) or np.any(test_layers[n].sums)]
     alpha = combined.alpha / max(len(lit), 1)
     rows, comparisons = [], {}
@@ -402,8 +407,15 @@ def layers_summary(
         "explained_by": biased,
         "explanation": explanation,
         "component_sum": sums,
+        "untested": untested,
     }
     return summary, comparisons
+
+
+def untested_lines(layers: dict[str, Any]) -> list[str]:
+    """What was not tested because only one run has it."""
+    return [f"not tested: {', '.join(names)} (only the {side} has {'them' if len(names) > 1 else 'it'})"
+            for side, names in layers.get("untested", {}).items() if names]  # fmt: skip
 
 
 def lobes_sum_error(run: wc.TileStats, layers: dict[str, wc.TileStats]) -> float:
@@ -427,6 +439,7 @@ def layer_lines(layers: dict[str, Any] | None) -> list[str]:
         lines.append(f"layer {row['name']}: {row['sentence']}")
     if layers["explanation"]:
         lines.append(layers["explanation"])
+    lines += untested_lines(layers)
     for side, check in layers["component_sum"].items():
         if check is not None and not check["ok"]:
             lines.append(
