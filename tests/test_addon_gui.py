@@ -204,7 +204,17 @@ GUI_SCRIPT = textwrap.dedent(
         with bpy.context.temp_override(window=window, area=properties, region=region(properties)):
             report["run"] = sorted(bpy.ops.welch_bias.run("INVOKE_DEFAULT"))
         log(f"run: {report['run']}")
-        live = []  # the map shown after each look while the check goes on
+        live = []  # the map shown after each look while the check goes on, as the operator showed it
+        operators = sys.modules[MODULE + ".blender_addon.operators"]
+        show_look = operators.show_look
+
+        def recorded_show_look(context, run):
+            shown = run.new_look
+            show_look(context, run)
+            if shown:
+                live.append(state.result["verdict_title"])
+
+        operators.show_look = recorded_show_look
         while state.running() or state.result is None:
             session = state.session
             if state.last_error or session is None or session.state not in ("RUNNING", "FINISHED"):
@@ -212,10 +222,9 @@ GUI_SCRIPT = textwrap.dedent(
             if time.monotonic() - started > RUN_TIMEOUT:
                 raise RuntimeError(f"no result after {RUN_TIMEOUT} s: {session.status_text()}")
             report["statuses"].append(session.status_text())  # this timer runs while the renders go on
-            if state.running() and state.result is not None:
-                live.append(state.result["verdict_title"])
             yield 0.2
-        report["live"] = live
+        operators.show_look = show_look
+        report["live"], report["looks"] = live, len(state.session.check.looks)
         result = state.result
         log(f"verdict: {result['verdict']}")
         with bpy.context.temp_override(window=window, area=map_editor, region=region(map_editor)):
@@ -352,7 +361,8 @@ def test_run_in_a_blender_34_window_shows_the_verdict_and_the_overlay(tmp_path, 
     assert report["run"] == ["RUNNING_MODAL"] and report["statuses"]  # Blender stayed responsive while rendering
     assert report["session"] == "FINISHED" and report["verdict"] == "biased"
     # The live map after each look says there is no verdict yet, until the look that decides.
-    assert report["live"] and all(t.startswith("No Verdict Yet") or t == "Biased" for t in report["live"])
+    assert len(report["live"]) == report["looks"] and report["live"][-1] == "Biased", report["live"]
+    assert all(t.startswith("No Verdict Yet") for t in report["live"][:-1])
     assert report["tiles"]["total"] == (SIZE // TILE) ** 2
     assert report["image"] == {"name": "Welch P-Value Map", "size": [SIZE, SIZE], "shown": True}
     assert report["frame_tile"] == report["show_result"] == ["FINISHED"]

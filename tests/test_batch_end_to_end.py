@@ -183,7 +183,10 @@ def test_resume_refuses_other_settings(reference, tmp_path):
         (["missing.blend"], "error: missing.blend: no such file"),
         (["--scene", "nope"], "error: unknown built-in scene 'nope'"),
         (["--scene", "corner", "--set", "cycles.no_such_thing=1"], "no property 'no_such_thing'"),
-        (["--scene", "corner", "--set", "cycles.samples"], "error: --set cycles.samples"),
+        (
+            ["--scene", "corner", "--set", "cycles.samples"],
+            "error: argument --set: 'cycles.samples': malformed override at the end",
+        ),
         ([], "error: no scene to render"),
     ],
 )

@@ -169,7 +169,7 @@ def test_a_blender_that_never_starts_rendering_is_stopped_with_what_it_started(t
                            "1", "--blender", str(fake), "--out", str(tmp_path / "x.npz")],
                           capture_output=True, text=True, cwd=ROOT, env=env, timeout=60)  # fmt: skip
     assert done.returncode == Exit.USAGE, done.stderr
-    assert done.stderr.strip() == (f"error: render side: {fake} did not start rendering within 2 s "
+    assert done.stderr.strip() == (f"error: {fake} did not start rendering within 2 s "
                                    "(WELCH_START_TIMEOUT sets the limit)")  # fmt: skip
     stat = Path(f"/proc/{int(marker.read_text())}/stat")
     time.sleep(0.5)  # the kill is sent; let it land

@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
@@ -252,8 +253,10 @@ def test_run_passes_then_names_the_planted_change_and_skips_a_missing_device(ble
     assert {c["verdict"] for c in summary["cases"]} == {"biased"}
     assert summary["cases"][0]["largest"]["estimate"] > 0.1 and summary["cases"][0]["whole_image"]["low"] > 0.05
 
+    # A suite whose every case was skipped tested nothing: it does not pass.
     done = batch("suite", "run", path, "--refs", refs, "--out", tmp_path / "gpu", "--device", "OPTIX",
-                 "--filter", "walls", check=0)  # fmt: skip
+                 "--filter", "walls", check=2)  # fmt: skip
+    assert "suite: 1 skipped" in done.stdout
     summary = json.loads((tmp_path / "gpu" / "summary.json").read_text())
     assert summary["cases"][0]["status"] == "skipped" and "Cycles found no GPU" in summary["cases"][0]["message"]
 
@@ -265,6 +268,28 @@ def test_a_missing_reference_is_refused_before_anything_renders(tmp_path):
     assert "no reference for walls, mirror in" in done.stderr and "run `suite bless` first" in done.stderr
     done = batch("suite", "run", path, "--out", tmp_path / "out", check=2)
     assert "--refs is required for" in done.stderr
+
+
+@pytest.mark.slow
+def test_a_suite_run_interrupted_in_its_second_case_resumes(blessed, tmp_path):
+    """Ctrl-C while the second case renders: exit 130, the first case's check kept as decided; --resume answers
+    the first from its state (no new look) and continues the second. The second case has a time budget (8 s of
+    rendering), so the interrupt lands while it renders however fast the machine."""
+    folder, _ = blessed
+    path = write_suite(tmp_path, SMALL + "seconds = 8\n")  # the mirror case renders for 8 s
+    argv = [sys.executable, "-m", "batch", "suite", "run", str(path), "--refs", str(folder / "refs"), "--out",
+            str(tmp_path / "run")]  # fmt: skip
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    for line in proc.stdout:
+        if line.startswith("suite run: 2/2"):
+            break
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    first = json.loads((tmp_path / "run" / "walls" / "CPU" / "check.json").read_text())["looks"]
+    done = batch("suite", "run", path, "--refs", folder / "refs", "--out", tmp_path / "run", "--resume", check=0)
+    assert "suite: 2 passed" in done.stdout, done.stdout + done.stderr
+    assert json.loads((tmp_path / "run" / "walls" / "CPU" / "check.json").read_text())["looks"] == first
 
 
 @pytest.mark.slow

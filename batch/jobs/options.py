@@ -140,13 +140,13 @@ def _lobes(name: str, value) -> tuple[str, ...]:
 
 
 def _override(name: str, value) -> str:
-    from .overrides import parse_override
+    from .overrides import OverrideError, parse_override
 
     value = text(name, value)
     try:
         parse_override(value)
-    except BatchError as exc:
-        raise BatchError(f"{name} {value!r}: {exc}") from None
+    except OverrideError as exc:
+        raise BatchError(f"{name} {value!r}: {exc.reason}") from None
     return value
 
 

@@ -55,7 +55,12 @@ _TRUE, _FALSE = frozenset({"true", "1"}), frozenset({"false", "0"})
 
 
 class OverrideError(BatchError, ValueError):
-    """An override that cannot be parsed, resolved, validated or applied; the message is one line."""
+    """An override that cannot be parsed, resolved, validated or applied; the message is one line, `reason` that
+    line without the override it is about."""
+
+    def __init__(self, text: str, reason: str):
+        super().__init__(f"--set {text}: {reason}")
+        self.reason = reason
 
 
 @dataclass(frozen=True)
@@ -85,7 +90,7 @@ class Override:
 
 
 def _error(text: str, reason: str) -> OverrideError:
-    return OverrideError(f"--set {text}: {reason}")
+    return OverrideError(text, reason)
 
 
 # ---------------------------------------------------------------------------------------------------------------

@@ -38,11 +38,11 @@ class Side:
     are saved, and `finish`; `stop` ends it at once, keeping what it saved.
 
     `progress` receives the side's events (a `batch.present.progress.Progress`, or anything with its methods);
-    `warn` the warnings, prefixed with the side's name; `env` is the render process's environment (default:
+    `warn` the warnings, prefixed with the side's name (None: a lone render, whose messages need no name); `env` is the render process's environment (default:
     this process's). `batch.jobs.distributed.ClusterSide` is the same side rendered on a Dask cluster.
     """
 
-    def __init__(self, name: str, job: RenderJob, progress=None, warn=None, env: dict[str, str] | None = None):
+    def __init__(self, name: str | None, job: RenderJob, progress=None, warn=None, env: dict[str, str] | None = None):
         self.name = name
         self.env = env
         self.job = job
@@ -110,8 +110,8 @@ class Side:
         if not self._alive and time.monotonic() - self._started_at > START_TIMEOUT:
             self.stop()
             who = self.job.blender or self.job.python or "the render process"
-            raise BatchError(f"{self.name} side: {who} did not start rendering within {START_TIMEOUT:.0f} s "
-                             "(WELCH_START_TIMEOUT sets the limit)")  # fmt: skip
+            raise BatchError(self._named(f"{who} did not start rendering within {START_TIMEOUT:.0f} s "
+                                         "(WELCH_START_TIMEOUT sets the limit)"))  # fmt: skip
         return False
 
     def wait(self) -> None:
@@ -160,21 +160,25 @@ class Side:
 
     def _warn(self, message: str) -> None:
         if self.warn is not None:
-            self.warn(f"{self.name}: {message}")
+            self.warn(f"{self.name}: {message}" if self.name else message)
+
+    def _named(self, message: str) -> str:
+        return f"{self.name} side: {message}" if self.name else message
 
     def _failed(self, code: int):
         reason = self.process.error_message() or "no error message"
         who = self.job.blender or self.job.python or "the render process"
         if code == 0:  # ended well without saving what was asked for: not a render process of this tool
-            raise BatchError(f"{self.name} side: {who} exited without rendering the passes asked for ({reason})")
+            raise BatchError(self._named(f"{who} exited without rendering the passes asked for ({reason})"))
         if code == Exit.USAGE:
-            raise BatchError(f"{self.name} side: {reason}")
+            raise BatchError(self._named(reason))
         if protocol.interrupted(code):
             raise KeyboardInterrupt
-        raise RuntimeError(f"the {self.name} side's render failed: {who} exited with code {code}: {reason}")
+        whose = f"the {self.name} side's render" if self.name else "the render"
+        raise RuntimeError(f"{whose} failed: {who} exited with code {code}: {reason}")
 
 
-def run_job(job: RenderJob, progress, name: str = "render") -> None:
+def run_job(job: RenderJob, progress, name: str | None = None) -> None:
     """Render all of `job` in another process (its Blender binary, or this Python) through a `Side`, relaying its
     progress to `progress`; raise as `Side` does. A process that exits 0 without having saved the passes asked
     for (a `--blender` that is not Blender) is an error, not a success."""
