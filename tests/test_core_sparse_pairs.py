@@ -33,7 +33,9 @@ def sparse_pair(rng, n: int, shift: float = 0.0, sign: float = 1.0):
     # Two configurations (the change is a setting): a look whose passes happen to be identical is not one run
     # compared with itself.
     made = [wc.RunInfo(spp=1, renderer="synthetic", overrides=side) for side in ((), ("cycles.change=1",))]
-    return tuple(wc.TileStats.from_sums(s, seeds, size, size, TILE, info=i) for s, i in zip((ref, test), made))
+    return tuple(
+        wc.TileStats.from_sums(s, seeds, size, size, TILE, info=i) for s, i in zip((ref, test), made, strict=True)
+    )
 
 
 def test_sparse_differences_are_tested_by_welch_on_the_two_sides():
