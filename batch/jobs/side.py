@@ -39,7 +39,8 @@ class Side:
 
     `progress` receives the side's events (a `batch.present.progress.Progress`, or anything with its methods);
     `warn` the warnings, prefixed with the side's name (None: a lone render, whose messages need no name);
-    `env` is the render process's environment (default: this process's). `batch.jobs.distributed.ClusterSide` is the same side rendered on a Dask cluster.
+    `env` is the render process's environment (default: this process's). `batch.jobs.distributed.ClusterSide`
+    is the same side rendered on a Dask cluster.
     """
 
     def __init__(self, name: str | None, job: RenderJob, progress=None, warn=None, env: dict[str, str] | None = None):
