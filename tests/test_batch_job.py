@@ -41,6 +41,19 @@ FULL = RenderJob(
 )
 #: The same job rendered by another release's bpy instead of a Blender binary (the two exclude each other).
 FULL_PYTHON = dataclasses.replace(FULL, blender=None, python="/root/.cache/welch-bias/bpy/4.5.4/bin/python")
+#: A job rendered by another renderer's command (which takes no Cycles setting).
+FULL_COMMAND = RenderJob(
+    out="/runs/out dir/mitsuba.npz",
+    seeds=(3, 1, 2),
+    spp=4,
+    tile=16,
+    overrides=("max_depth=3", "light_scale=1.5"),
+    resume=True,
+    on_nan="skip",
+    checkpoint_every=3,
+    command="{python} 'render pass.py' --seed={seed} --out {out} --spp {spp} {set}",
+    command_dir="/projects/my renderer",
+)
 
 
 def parse(argv: list[str]) -> RenderJob:
@@ -54,6 +67,7 @@ def parse(argv: list[str]) -> RenderJob:
     [
         FULL,
         FULL_PYTHON,
+        FULL_COMMAND,
         RenderJob(out="a.npz", seeds=range(0, 64)),
         RenderJob(out="a.npz", seeds=[5], scene="corner", resolution=(64, 64)),
         dataclasses.replace(FULL, blend=None, scene="glossy", blend_scene=None, blender=None, seeds=range(10, 20)),
@@ -66,7 +80,7 @@ def test_every_field_round_trips_through_argv(job):
 
 def test_every_field_is_covered():
     """A new field without a command-line form would be lost between processes."""
-    changed = {f.name for f in dataclasses.fields(RenderJob) for job in (FULL, FULL_PYTHON)
+    changed = {f.name for f in dataclasses.fields(RenderJob) for job in (FULL, FULL_PYTHON, FULL_COMMAND)
                if getattr(job, f.name) != f.default}  # fmt: skip
     assert changed == {f.name for f in dataclasses.fields(RenderJob)} - {"scene"}
 

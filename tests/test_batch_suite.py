@@ -33,6 +33,10 @@ def write_suite(tmp_path, text: str) -> Path:
 CASE = '[[case]]\nname = "a"\nscene = "corner"\n'
 
 
+#: The start of a case whose passes a command renders ("r", completed by each row).
+COMMAND = '[[case]]\nname = "a"\ncommand = "r'
+
+
 @pytest.mark.parametrize(
     ("text", "message"),
     [
@@ -41,8 +45,12 @@ CASE = '[[case]]\nname = "a"\nscene = "corner"\n'
         ("[sweet]\n" + CASE, "unknown table [sweet] (a suite has [suite], [defaults] and [[case]])"),
         (CASE + "colour = 1\n", "case 'a': unknown key 'colour'"),
         ('[[case]]\nname = "a b"\nscene = "corner"\n', "case 'a b': 'name' must be letters, digits, '-', '_' or '.'"),
-        ('[[case]]\nname = "a"\n', "case 'a': give 'scene' (a built-in scene) or 'blend' (a .blend file), one of"),
-        (CASE + 'blend = "x.blend"\n', "case 'a': give 'scene' (a built-in scene) or 'blend'"),
+        (
+            '[[case]]\nname = "a"\n',
+            "case 'a': give 'scene' (a built-in scene), 'blend' (a .blend file) or 'command' (another renderer), "
+            "one of them",
+        ),
+        (CASE + 'blend = "x.blend"\n', "case 'a': give 'scene' (a built-in scene), 'blend'"),
         ('[[case]]\nname = "a"\nblend = "missing.blend"\n', "case 'a': blend file "),
         (CASE + "resolution = [32]\n", "case 'a': 'resolution' must be a width and a height in pixels, got [32]"),
         (CASE + "passes = 1\n", "case 'a': 'passes' must be an integer in 2..1000000, got 1"),
@@ -58,6 +66,18 @@ CASE = '[[case]]\nname = "a"\nscene = "corner"\n'
         (CASE + 'expect = "different"\n', "case 'a': 'expect' must be 'same' or 'biased', got 'different'"),
         (CASE + 'set = ["cycles.samples"]\n', "case 'a': 'set' 'cycles.samples': "),
         (CASE + CASE, "case 'a': the name is used twice"),
+        (COMMAND + ' --out {out}"\n', "case 'a': --command 'r --out {out}' has no {seed}: each pass needs its own"),
+        (COMMAND + ' {seed} {out} {sed}"\n', "case 'a': --command 'r {seed} {out} {sed}': unknown placeholder {sed}"),
+        (
+            COMMAND + ' {seed} {out}"\nset = ["k=1"]\n',
+            "case 'a': --command 'r {seed} {out}' has no {set} for the overrides ['k=1']",
+        ),  # fmt: skip
+        (
+            COMMAND + ' {seed} {out}"\ndevices = ["OPTIX"]\n',
+            "case 'a': --command renders the passes itself: --device does not apply to it",
+        ),  # fmt: skip
+        (COMMAND + ' {seed} {out}"\nresolution = [32, 32]\n', "--resolution does not apply to it"),
+        (COMMAND + ' {seed} {out}"\nscene = "corner"\n', "case 'a': give 'scene' (a built-in scene), 'blend'"),
         ("[[case]\n", "not readable TOML"),
     ],
 )

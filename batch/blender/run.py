@@ -12,7 +12,7 @@ import time
 
 from .._siblings import welch_core as wc
 from ..errors import BatchError
-from ..jobs import protocol
+from ..jobs import command, protocol
 from ..jobs.job import RenderJob
 from ..jobs.launch import THREADS_ENV
 from ..jobs.lock import OutputLock, output_folder
@@ -91,16 +91,16 @@ def limit_threads(scene, value: str | None = None) -> None:
     scene.render.threads = threads
 
 
-def _start_stats(job: RenderJob, scene, info: wc.RunInfo) -> wc.TileStats:
-    """A new TileStats, or the checkpoint in `job.out` when resuming (checked to be the same run)."""
-    width, height = render_size(scene)
+def _start_stats(job: RenderJob, size, info: wc.RunInfo) -> wc.TileStats:
+    """A new TileStats, or the checkpoint in `job.out` when resuming (checked to be the same run); `size()` is
+    the image's (width, height)."""
+    if os.path.exists(job.out) and not job.resume:
+        raise RunError(f"{job.out} already exists: pass --resume to continue it, or choose another --out")
+    width, height = size()
     if job.tile > min(width, height):
         raise RunError(f"--tile {job.tile} is larger than the image {width}x{height}")
     fresh = wc.TileStats(height, width, job.tile, 3, info)
-    exists = os.path.exists(job.out)
-    if exists and not job.resume:
-        raise RunError(f"{job.out} already exists: pass --resume to continue it, or choose another --out")
-    if not exists:
+    if not os.path.exists(job.out):
         return fresh
     stats = wc.load_stats(job.out)
     try:
@@ -115,7 +115,7 @@ def _start_stats(job: RenderJob, scene, info: wc.RunInfo) -> wc.TileStats:
 
 def _start_layers(job: RenderJob, scene, stats: wc.TileStats) -> dict[str, wc.TileStats]:
     """The layers of `job.lobes` (light components, light groups), new or those of the checkpoint."""
-    names = render.layer_names(scene, job.lobes)
+    names = render.layer_names(scene, job.lobes) if job.lobes else []
     if not os.path.exists(job.out):
         return {name: wc.TileStats(stats.height, stats.width, stats.tile, 3, stats.info) for name in names}
     layers = wc.load_layers(job.out)
@@ -135,14 +135,18 @@ def render_run(job: RenderJob, progress: Progress, requests=None) -> wc.TileStat
     """
     output_folder(job.out)
     with OutputLock(job.out):
-        scene, info = prepare_scene(job, progress.warning)
-        limit_threads(scene)
-        stats = _start_stats(job, scene, info)
-        layers = _start_layers(job, scene, stats)
-        done = set(stats.seeds)
-        todo = [seed for seed in job.seeds if seed not in done]
-        progress.start(len(job.seeds) - len(todo), job.out)
-        with render.PassRenderer(scene, lobes=job.lobes) as renderer, StopRequest() as stop:
+        if job.command is not None:  # another renderer: no scene, the size is its images'
+            scene, info, renderer = None, command.run_info(job), command.CommandRenderer(job)
+        else:
+            scene, info = prepare_scene(job, progress.warning)
+            limit_threads(scene)
+            renderer = render.PassRenderer(scene, lobes=job.lobes)
+        with renderer, StopRequest() as stop:
+            stats = _start_stats(job, lambda: _image_size(job, scene, renderer), info)
+            layers = _start_layers(job, scene, stats)
+            done = set(stats.seeds)
+            todo = [seed for seed in job.seeds if seed not in done]
+            progress.start(len(job.seeds) - len(todo), job.out)
             if requests is None:
                 render_passes(renderer, todo, stats, progress, job.on_nan, job.out, job.checkpoint_every, stop, layers)
             else:
@@ -159,6 +163,16 @@ def render_run(job: RenderJob, progress: Progress, requests=None) -> wc.TileStat
                         break
     progress.finished(job.out, stats.n)
     return stats
+
+
+def _image_size(job: RenderJob, scene, renderer) -> tuple[int, int]:
+    """(width, height) of the job's passes: the scene's, or a command's (its checkpoint's, else its first pass's)."""
+    if scene is not None:
+        return render_size(scene)
+    if os.path.exists(job.out):
+        stats = wc.load_stats(job.out, pixels=False)
+        return stats.width, stats.height
+    return renderer.size(job.seeds[0])
 
 
 def _render_chunk(
@@ -221,7 +235,8 @@ def render_passes(
             except wc.WelchInputError as exc:
                 raise RunError(f"{exc} (use --on-nan skip or keep to go on)") from None
             pending += 1
-            progress.pass_done(seed, time.perf_counter() - start)
+            # A command's first pass may have been rendered earlier, to learn the image size: its time counts.
+            progress.pass_done(seed, time.perf_counter() - start + getattr(renderer, "replayed_seconds", 0.0))
             if out and pending >= checkpoint_every:
                 wc.save_stats(out, stats, layers)
                 pending = 0

@@ -13,7 +13,9 @@ A suite file::
     [[case]]
     name = "glossy"           # letters, digits, - _ .
     scene = "glossy_rough"    # a built-in scene, or
-    # blend = "scenes/glossy.blend"   # a .blend file, relative to the suite file (blend_scene = "Scene")
+    # blend = "scenes/glossy.blend"   # a .blend file, relative to the suite file (blend_scene = "Scene"), or
+    # command = "{python} render.py --seed {seed} --out {out} {set}"  # another renderer (batch.jobs.command),
+    #                                                                 # run in the suite file's folder
     set = ["cycles.max_bounces=64"]   # overrides of this case, both sides
     resolution = [64, 64]
     spp = 1                   # samples per pass
@@ -50,6 +52,7 @@ from pathlib import Path
 
 from .._siblings import welch_core as wc
 from ..errors import BatchError
+from ..jobs import command as jobs_command
 from ..jobs import options
 from ..jobs.distributed import cluster as side_cluster
 from ..jobs.job import BUILTIN_SCENES, NO_GPU_MESSAGE, RenderJob, builtin_scene_id
@@ -64,7 +67,7 @@ EXPECTATIONS = ("same", "biased")
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 _CASE_KEYS = {
     "name", "scene", "blend", "blend_scene", "set", "resolution", "spp", "tile", "passes", "seconds", "devices",
-    "tolerance", "expect", "sampling_pattern", "test_sampling_pattern", "why", "planted",
+    "tolerance", "expect", "sampling_pattern", "test_sampling_pattern", "why", "planted", "command",
 }  # fmt: skip
 
 
@@ -89,6 +92,8 @@ class Case:
     test_sampling_pattern: str | None = None  # the test side's, where it differs from the reference's on purpose
     why: str = ""
     planted: str | None = None  # a change of the case's feature that it must find (documentation, benchmarks)
+    command: str | None = None  # renders a pass into an EXR instead of Cycles (batch.jobs.command)
+    folder: str | None = None  # the suite file's folder, where a command runs
 
     def job(
         self,
@@ -117,6 +122,8 @@ class Case:
             blender=blender,
             python=python,
             checkpoint_every=max(self.passes, 1),
+            command=self.command,
+            command_dir=self.folder if self.command else None,
         )
 
 
@@ -205,8 +212,15 @@ def _case(entry: dict, label: str, folder: Path, problems: list[str]) -> Case | 
     name = entry.get("name")
     if not isinstance(name, str) or not _NAME.fullmatch(name) or len(name) > 100:
         problems.append(f"{label}: 'name' must be letters, digits, '-', '_' or '.' (a file name), got {name!r}")
-    if ("scene" in entry) == ("blend" in entry):
-        problems.append(f"{label}: give 'scene' (a built-in scene) or 'blend' (a .blend file), one of them")
+    if sum(key in entry for key in ("scene", "blend", "command")) != 1:
+        problems.append(f"{label}: give 'scene' (a built-in scene), 'blend' (a .blend file) or 'command' (another "
+                        "renderer), one of them")  # fmt: skip
+    command = entry.get("command")
+    if command is not None:
+        try:
+            jobs_command.words(options.text("'command'", command))
+        except BatchError as exc:
+            problems.append(f"{label}: {exc}")
     scene, blend = entry.get("scene"), None
     if scene is not None and scene not in BUILTIN_SCENES:
         problems.append(f"{label}: 'scene' {scene!r} is not a built-in scene (one of {', '.join(BUILTIN_SCENES)})")
@@ -234,7 +248,7 @@ def _case(entry: dict, label: str, folder: Path, problems: list[str]) -> Case | 
         texts[key] = entry.get(key) if isinstance(entry.get(key), str) else None
     if len(problems) > found:
         return None
-    return Case(
+    case = Case(
         name=name,
         scene=scene,
         blend=blend,
@@ -252,7 +266,17 @@ def _case(entry: dict, label: str, folder: Path, problems: list[str]) -> Case | 
         test_sampling_pattern=test_pattern,
         why=texts["why"] or "",
         planted=texts["planted"],
+        command=command,
+        folder=str(folder.resolve()),
     )
+    for device in case.devices:  # what a render job refuses (a command with a Cycles setting, say), named now
+        try:
+            case.job("reference.npz", [0], device, None)
+            case.job("test.npz", [1], device, None, test=True)
+        except BatchError as exc:
+            problems.append(f"{label}: {exc}")
+            return None
+    return case
 
 
 # -- references ---------------------------------------------------------------------------------------------------
@@ -442,19 +466,21 @@ def _run_case(
     first = max(reference.seeds) + 1 + seed_offset
     budget = case.passes if case.seconds is None else None
     count = budget or 100_000
-    job = CheckJob(
-        reference=case.job(str(reference_path(refs, case)), reference.seeds, reference.info.device or "CPU", None),
-        test=case.job(str(folder / "test.npz"), range(first, first + count), device, blender, overrides, True, python),
-        out=str(folder),
-        max_passes=budget,
-        max_seconds=case.seconds,
-        alpha=suite.alpha,
-        tolerance=case.tolerance,
-        resume=resume and (folder / "check.json").exists(),
-        fixed_reference=True,
-    )
     start = time.perf_counter()
     try:
+        job = CheckJob(
+            reference=case.job(str(reference_path(refs, case)), reference.seeds, reference.info.device or "CPU", None),
+            test=case.job(
+                str(folder / "test.npz"), range(first, first + count), device, blender, overrides, True, python
+            ),  # fmt: skip
+            out=str(folder),
+            max_passes=budget,
+            max_seconds=case.seconds,
+            alpha=suite.alpha,
+            tolerance=case.tolerance,
+            resume=resume and (folder / "check.json").exists(),
+            fixed_reference=True,
+        )
         verdict, summary = run_check(job, progress_factory(count), where)
     except BatchError as exc:
         status = "skipped" if NO_GPU_MESSAGE in str(exc) else "error"
@@ -480,6 +506,8 @@ def reference_problem(case: Case, reference: wc.TileStats, refs: Path) -> str | 
     elif case.scene is not None and info.scene_id != builtin_scene_id(case.scene):
         expected.append(f"the built-in scene {case.scene!r} as it is built now ({builtin_scene_id(case.scene)}), it "
                         f"holds {info.scene_id}")  # fmt: skip
+    if case.command is not None and info.scene_id != jobs_command.scene_id(case.command):
+        expected.append(f"the command {case.command!r}, it holds {info.scene!r}")
     if case.blend is not None and info.scene_id != f"sha256:{_sha256(case.blend)}":
         expected.append(f"{case.blend} as it is now (the file changed since, or it is another scene's)")
     if info.spp != case.spp:

@@ -75,6 +75,8 @@ class RenderJob:
     blender: str | None = None
     lobes: tuple[str, ...] = ()  # light components and light groups accumulated as layers (batch.lobes)
     python: str | None = None  # a Python whose environment has a bpy module (another release) to render in
+    command: str | None = None  # a command that renders one pass into an EXR, instead of Cycles (batch.jobs.command)
+    command_dir: str | None = None  # the folder the command runs in (default: the current one)
 
     def __post_init__(self):
         object.__setattr__(self, "seeds", tuple(self.seeds))
@@ -110,6 +112,20 @@ class RenderJob:
             raise BatchError(f"--device must be one of {', '.join(DEVICES)}, got {self.device!r}")
         if self.on_nan not in ON_NAN:
             raise BatchError(f"--on-nan must be one of {', '.join(ON_NAN)}, got {self.on_nan!r}")
+        if self.command is not None:
+            self._check_command()
+
+    def _check_command(self) -> None:
+        from .command import words
+
+        if self.overrides and "{set}" not in words(self.command):
+            raise BatchError(f"--command {self.command!r} has no {{set}} for the overrides {list(self.overrides)}")
+        cycles = {"a scene": self.blend or self.scene or self.blend_scene, "--blender": self.blender,
+                  "--python": self.python, "--sampling-pattern": self.sampling_pattern, "--lobes": self.lobes,
+                  "--resolution": self.resolution, "--device": self.device != "CPU"}  # fmt: skip
+        given = [name for name, value in cycles.items() if value]
+        if given:
+            raise BatchError(f"--command renders the passes itself: {given[0]} does not apply to it")
 
     def replace(self, **changes) -> RenderJob:
         return dataclasses.replace(self, **changes)
@@ -137,6 +153,8 @@ class RenderJob:
             blender=args.blender,
             lobes=args.lobes,
             python=getattr(args, "python", None),
+            command=getattr(args, "pass_command", None),
+            command_dir=getattr(args, "command_dir", None),
         )
 
     def to_argv(self) -> list[str]:
@@ -166,6 +184,10 @@ class RenderJob:
             argv += ["--lobes", ",".join(self.lobes)]
         if self.python is not None:
             argv += ["--python", self.python]
+        if self.command is not None:
+            argv += ["--command", self.command]
+        if self.command_dir is not None:
+            argv += ["--command-dir", self.command_dir]
         return [*argv, "--out", self.out]
 
 
@@ -232,6 +254,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         defaults={"tile": 32, "device": "CPU", "lobes": ()},
         helps={"tile": "tile edge in pixels", "resolution": f"override the resolution (at most {MAX_RESOLUTION})"},
     )
+    parser.add_argument(
+        "--command",
+        dest="pass_command",  # "command" is the subcommand's
+        metavar="TEMPLATE",
+        help="render each pass with this command instead of Cycles (another renderer): it must write the pass of "
+        "{seed} into the EXR {out}; also {spp}, {set} (the overrides, one argument each), {python} (this Python); "
+        "e.g. '{python} render.py --seed {seed} --out {out}'",
+    )
+    parser.add_argument("--command-dir", metavar="DIR", help="the folder --command runs in (default: this one)")
     parser.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")
     parser.add_argument(
         "--on-nan",
