@@ -205,3 +205,20 @@ def test_a_mitsuba_suite_through_the_pytest_plugin(tmp_path):
     planted = pytest_in(tmp_path, "--welch-set", "max_depth=3")
     assert planted.returncode == 1, planted.stdout[-3000:]
     assert any(line.startswith("failed: biased: whole image -") for line in planted.stdout.splitlines())
+
+
+def test_check_with_a_command_pairs_the_seeds_of_one_command_and_refuses_what_cannot_work(toy):
+    """The toy's passes depend on the seed alone, so a shift is the same in every paired pass (to float32's
+    rounding, exactly so in 2 tile-channels): a deterministic difference, `biased` at the first look."""
+    done = batch("check", "--command", TEMPLATE, "--set", "shift=0.01", "--spp", 1, "--tile", 16, "--max-passes", 8,
+                 "--out", "c", cwd=toy, check=1)  # fmt: skip
+    verdict = next(line for line in done.stdout.splitlines() if line.startswith("verdict:"))
+    assert verdict == "verdict: biased: 2 tile-channels differ by the same amount in every pass", done.stdout
+    done = batch("check", "--command", TEMPLATE, "--spp", 1, "--out", "d", cwd=toy, check=2)
+    assert "the two sides are identical by construction" in done.stderr and "--test-command" in done.stderr
+    done = batch("check", "--test-command", TEMPLATE, "--spp", 1, "--out", "e", cwd=toy, check=2)
+    assert (
+        done.stderr == "error: --test-command needs --command: the reference side's passes are rendered the same way\n"
+    )
+    done = batch("check", "--command", TEMPLATE, "--scene", "corner", "--spp", 1, "--out", "f", cwd=toy, check=2)
+    assert done.stderr == "error: --command renders the passes itself: a scene does not apply to it\n"

@@ -115,6 +115,10 @@ def build_parser() -> argparse.ArgumentParser:
     add_options(k, ("blender", "python"), helps=helps)
     k.add_argument("--test-blender", metavar="PATH", help="Blender executable of the test side (default: --blender)")
     k.add_argument("--test-python", metavar="PATH", help="the test side's Python with a bpy module (default: --python)")
+    k.add_argument("--command", dest="pass_command", metavar="TEMPLATE", help="render the reference's passes with "
+                   "this command of another renderer instead of Cycles (as render --command; no scene)")  # fmt: skip
+    k.add_argument("--test-command", metavar="TEMPLATE", help="the test side's command (default: --command)")
+    k.add_argument("--command-dir", metavar="DIR", help="the folder the commands run in (default: this one)")
     k.add_argument(
         "--tolerance",
         type=tolerance_or_off,

@@ -92,6 +92,8 @@ def sides_identical(reference: RenderJob, test: RenderJob) -> bool:
         "blender",
         "python",
         "spp",
+        "command",
+        "command_dir",
     )
     same = all(getattr(reference, f) == getattr(test, f) for f in fields)
     return same and reference.seeds == test.seeds
@@ -444,8 +446,10 @@ def check_job_from_args(args) -> CheckJob:
         raise BatchError(f"give a .blend file or a built-in scene, not both ({args.blend}, {args.scene!r})")
     if args.lobes and (args.workers or args.scheduler):
         raise BatchError("--lobes does not go with --workers or --scheduler yet: render the layers in one process")
-    if args.blend is None and args.scene is None:
-        raise BatchError("no scene to check: give a .blend file or a built-in scene (--scene)")
+    if args.test_command and not args.pass_command:
+        raise BatchError("--test-command needs --command: the reference side's passes are rendered the same way")
+    if args.blend is None and args.scene is None and not args.pass_command:
+        raise BatchError("no scene to check: give a .blend file or a built-in scene (--scene), or --command")
     for option, path in (("SCENE.blend", args.blend), ("--test-blend", args.test_blend)):
         if path is not None and not Path(path).is_file():
             raise BatchError(f"{option} {path}: no such file")
@@ -456,7 +460,7 @@ def check_job_from_args(args) -> CheckJob:
                          "(--python, --test-python), not both")  # fmt: skip
     same_build = (args.test_blender or args.blender) == args.blender and (args.test_python or args.python) == (
         args.python
-    )
+    ) and (args.test_command or args.pass_command) == args.pass_command  # fmt: skip
     paired = same_build and not args.unpaired
     ref_seeds = range(count)
     test_seeds = ref_seeds if paired else range(UNPAIRED_SEEDS, UNPAIRED_SEEDS + count)
@@ -470,6 +474,7 @@ def check_job_from_args(args) -> CheckJob:
         "resume": args.resume,
         "checkpoint_every": MAX_PASSES,  # saved after every chunk anyway (and the same whatever the budget)
         "lobes": args.lobes,
+        "command_dir": str(Path(args.command_dir or ".").resolve()) if args.pass_command else None,
     }
     reference = RenderJob(
         out=str(out / "reference.npz"),
@@ -479,6 +484,7 @@ def check_job_from_args(args) -> CheckJob:
         blend_scene=args.blend_scene,
         blender=args.blender,
         python=args.python,
+        command=args.pass_command,
         **common,
     )
     test = RenderJob(
@@ -490,12 +496,13 @@ def check_job_from_args(args) -> CheckJob:
         blender=args.test_blender or args.blender,
         python=args.test_python or args.python,
         overrides=tuple(args.overrides),
+        command=args.test_command or args.pass_command,
         **common,
     )
     if sides_identical(reference, test):
         raise BatchError(
             "the two sides are identical by construction (same scene, build, settings and seeds): every difference "
-            "would be zero; give --set, --test-blend or --test-blender, or --unpaired for an A/A check"
+            "would be zero; give --set, --test-blend, --test-blender or --test-command, or --unpaired for an A/A check"
         )
     if not args.resume:
         for job in (reference, test):

@@ -185,9 +185,7 @@ def notes(c: wc.Comparison, outcome: wc.Outcome | None = None) -> list[str]:
             "pass in ten went unseen: no tile is bounded before"
         )
     if outcome.deterministic:
-        out.append(
-            f"{outcome.deterministic} tile-channels are constant on both sides but differ: a deterministic difference"
-        )
+        out.append(f"{words.deterministic(outcome.deterministic, outcome.test)}: a deterministic difference")
     if valid == 0 and not outcome.identical:
         out.append(
             "no tile can be tested: every tile-channel has too few passes, zero variance on both sides or non-finite "

@@ -51,13 +51,20 @@ def _identical_share(outcome: dict[str, Any]) -> str:
     return f"a change that alters one pass in ten would have shown ({1 - outcome['alpha']:.0%})"
 
 
+def deterministic(count: int, test: str) -> str:
+    """Tile-channels whose difference no noise explains, as the test saw them."""
+    if test == "paired":
+        return f"{count} tile-channels differ by the same amount in every pass"
+    return f"{count} tile-channels are constant on both sides but differ"
+
+
 def sentence(outcome: dict[str, Any]) -> str:
     """The verdict in one sentence, its own word first: what it claims, at which scale, with its numbers."""
     text, reason = outcome["verdict_text"], outcome["reason"]
     whole = whole_image(outcome)
     n = min(outcome["n_ref"], outcome["n_test"])
     if reason == "deterministic":
-        return f"{text}: {outcome['deterministic']} tile-channels are constant on both sides but differ"
+        return f"{text}: {deterministic(outcome['deterministic'], outcome['test'])}"
     if reason == "identical":
         return f"{text}: all {n} passes are identical on both sides; {_identical_share(outcome)}"
     if reason == "identical_too_few":
