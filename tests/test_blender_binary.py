@@ -88,7 +88,7 @@ def test_render_with_the_blender_option_streams_progress_and_passes_errors_throu
     )
     done = batch("render", "--scene", "corner", *SMALL, "--seeds", "0:3", "--blender", tmp_path / "no-blender",
                  "--out", tmp_path / "x.npz", check=2)  # fmt: skip
-    assert done.stderr == f"error: can't start {tmp_path / 'no-blender'}: No such file or directory\n"
+    assert done.stderr == f"error: --blender {tmp_path / 'no-blender'}: no such program\n"
     assert not (tmp_path / "x.npz").exists()
 
 

@@ -100,6 +100,10 @@ def skewed_sequence(rng, n, mean, scale):
     return mean + scale * (rng.gamma(4.0, 0.5, size=(n, *mean.shape)) - 2.0)
 
 
+#: The first sequences that are also looked at by peeking, to show its inflation (which needs far fewer).
+NAIVE_TRIALS = 400
+
+
 @pytest.mark.slow
 def test_biased_is_calibrated_under_the_stopping_rule():
     """2000 unbiased sequences (Gamma Welch samples, skewness 1, standard deviations 1:3, 2x2 tiles x 3 channels,
@@ -112,10 +116,10 @@ def test_biased_is_calibrated_under_the_stopping_rule():
     mean = rng.uniform(50.0, 150.0, size=(2, 2, 3))
     plan = SequentialPlan(max_passes=64, alpha=0.05, tolerance=None)
     biased = naive = 0
-    for _ in range(2000):
+    for trial in range(2000):
         ref_sums, test_sums = skewed_sequence(rng, 64, mean, 1.0), skewed_sequence(rng, 64, mean, 3.0)
         biased += run_looks(ref_sums, test_sums, plan)[-1].verdict == "biased"
-        naive += any(
+        naive += trial < NAIVE_TRIALS and any(
             compare(
                 TileStats.from_sums(ref_sums[:n], range(n), 16, 16, 8),
                 TileStats.from_sums(test_sums[:n], range(1000, 1000 + n), 16, 16, 8),
@@ -124,8 +128,9 @@ def test_biased_is_calibrated_under_the_stopping_rule():
             == "biased"
             for n in look_schedule(64)
         )
+    print(f"biased in {biased} of 2000; peeking: {naive} of {NAIVE_TRIALS}")
     assert biased <= stats.binom.ppf(0.999, 2000, 0.05), biased
-    assert naive > 2 * 0.05 * 2000, naive  # peeking without boundaries is not calibrated
+    assert naive > 2 * 0.05 * NAIVE_TRIALS, naive  # peeking without boundaries is not calibrated
 
 
 def test_information_fractions():
@@ -146,10 +151,11 @@ def test_biased_stays_calibrated_when_the_budget_grows_after_the_last_look():
     mean = rng.uniform(50.0, 150.0, size=(2, 2, 3))
     plan = SequentialPlan(max_passes=16, alpha=0.05, tolerance=None)
     biased = 0
-    for _ in range(2000):
+    for _ in range(1000):
         ref_sums, test_sums = skewed_sequence(rng, 64, mean, 1.0), skewed_sequence(rng, 64, mean, 3.0)
         biased += run_looks(ref_sums, test_sums, plan, budget=64)[-1].verdict == "biased"
-    assert biased <= stats.binom.ppf(0.999, 2000, 0.05), biased
+    print(f"biased in {biased} of 1000")
+    assert biased <= stats.binom.ppf(0.999, 1000, 0.05), biased
 
 
 @pytest.mark.slow
@@ -162,10 +168,11 @@ def test_biased_is_calibrated_with_a_fixed_reference():
     mean = rng.uniform(50.0, 150.0, size=(2, 2, 3))
     plan = SequentialPlan(max_passes=64, alpha=0.05, tolerance=None)
     biased = 0
-    for _ in range(2000):
+    for _ in range(1000):
         ref_sums, test_sums = skewed_sequence(rng, 32, mean, 1.0), skewed_sequence(rng, 64, mean, 3.0)
         biased += run_looks(ref_sums, test_sums, plan, fixed_reference=True)[-1].verdict == "biased"
-    assert biased <= stats.binom.ppf(0.999, 2000, 0.05), biased
+    print(f"biased in {biased} of 1000")
+    assert biased <= stats.binom.ppf(0.999, 1000, 0.05), biased
 
 
 @pytest.mark.slow
@@ -176,11 +183,12 @@ def test_equivalent_is_calibrated_under_the_stopping_rule_at_a_bias_equal_to_the
     mean = rng.uniform(50.0, 150.0, size=(2, 2, 3))
     plan = SequentialPlan(max_passes=256, alpha=0.05, tolerance=0.02)
     equivalent = 0
-    for _ in range(2000):
+    for _ in range(1000):
         ref_sums = skewed_sequence(rng, 256, mean, 1.0)
         test_sums = skewed_sequence(rng, 256, mean * 1.02, 3.0)
         equivalent += run_looks(ref_sums, test_sums, plan)[-1].verdict == "equivalent"
-    assert equivalent <= stats.binom.ppf(0.999, 2000, 0.05), equivalent
+    print(f"equivalent in {equivalent} of 1000")
+    assert equivalent <= stats.binom.ppf(0.999, 1000, 0.05), equivalent
 
 
 def firefly_sequence(rng, n, shape, rate=0.3, size=30.0):

@@ -12,6 +12,7 @@ import pytest
 from scipy import stats
 
 import welch_core as wc
+from batch.present.summary import notes
 from welch_core.looks import information_fraction
 
 TILES, CHANNELS, TILE = 4, 3, 16
@@ -50,6 +51,22 @@ def test_sparse_differences_are_tested_by_welch_on_the_two_sides():
     np.testing.assert_array_equal(tested.cross, -ref.variance / ref.n)  # the ratio's interval: independent sides
     outcome = wc.compare(ref, test, alpha=0.05).outcome
     assert outcome.verdict == "biased" and [s.unpaired for s in outcome.scales] == [16, 4, 1]
+    # Recognised as its own case: mostly exact zeros, not fireflies.
+    assert tested.sparse.all() and [s.sparse for s in outcome.scales] == [16, 4, 1]
+    note = ("tiles whose per-pass differences are mostly exact zeros (a change that alters a few light paths, not "
+            "fireflies): 16 of 16 at 16x16, 4 of 4 at 32x32, 1 of 1 at 64x64")  # fmt: skip
+    assert note in notes(wc.compare(ref, test, alpha=0.05))
+
+
+def test_dense_paired_differences_are_not_called_sparse():
+    """A change that alters every pass a little (no exact zeros): not sparse, whatever else the tiles are."""
+    ref, _ = sparse_pair(np.random.default_rng(6), 64)
+    rng = np.random.default_rng(7)
+    sums = ref.sums * (1.0 + 0.001 * rng.standard_normal(ref.sums.shape))
+    test = wc.TileStats.from_sums(sums, ref.seeds, ref.height, ref.width, ref.tile, info=wc.RunInfo(overrides=("k",)))
+    tested = wc.comparison.test_tiles(ref, test, "paired")
+    assert not tested.sparse.any() and not tested.unpaired.any()
+    assert all(s.sparse == 0 for s in wc.compare(ref, test, alpha=0.05).outcome.scales)
 
 
 def test_a_sparse_change_is_found_where_the_paired_test_alone_could_test_nothing():

@@ -183,6 +183,8 @@ class TileTest:
     cross: np.ndarray
     #: paired runs: the tile-channels tested by Welch's test on the two sides instead (`test_tiles`)
     unpaired: np.ndarray | None = None
+    #: paired runs: the tile-channels whose per-pass differences are mostly exact zeros (`SPARSE_SHARE`)
+    sparse: np.ndarray | None = None
 
     @property
     def welch(self) -> np.ndarray | bool:
@@ -205,6 +207,11 @@ def scale_factors(run: TileStats, tile: int | None = None) -> list[int]:
         f *= 2
         factors.append(f)
     return factors
+
+
+#: Paired differences exactly zero in at least this share of the passes are "mostly exact zeros": a change that
+#: alters a few light paths, its own case in the diagnostics (not fireflies), whichever test the tile gets.
+SPARSE_SHARE = 0.5
 
 
 def test_tiles(ref: TileStats, test: TileStats, kind: str, pvalue_method: str = "exact") -> TileTest:
@@ -239,7 +246,8 @@ def test_tiles(ref: TileStats, test: TileStats, kind: str, pvalue_method: str = 
             cross = np.where(unpaired, -ref_var, cross)
             suspect = suspect & ~unpaired
         checked = diffs.n >= MIN_PASSES_FOR_NORMALITY
-        return TileTest(kind, result, suspect, checked, ref.mean, ref_var, cross, unpaired)
+        sparse = (diffs.sums == 0).mean(axis=0) >= SPARSE_SHARE if diffs.n else np.zeros_like(suspect)
+        return TileTest(kind, result, suspect, checked, ref.mean, ref_var, cross, unpaired, sparse & checked)
     result = welch_from_stats(
         ref.mean, ref.variance, ref.n, test.mean, test.variance, test.n, pvalue_method=pvalue_method
     )

@@ -122,6 +122,7 @@ class ScaleResult:
     tested: int  # tiles with a p-value that enter the `biased` test (trusted)
     untrusted: int  # tiles with a p-value left out (Welch samples clearly not normal)
     unpaired: int  # paired runs: tiles tested by Welch's test on the two sides (their differences not normal)
+    sparse: int  # paired runs: tiles whose per-pass differences are mostly exact zeros (a change of a few paths)
     significant: int  # tiles with a tile-channel found significant
     p_value: float | None  # this scale's own p-value (fixed design only)
     ruled_out: float | None  # the largest |relative bias| left open over its tiles; None: some tile is unbounded
@@ -353,6 +354,7 @@ def _scale_result(scale, significant, bounds, tolerance, n: int, run, p_value, i
         tested=int(scale.used.sum()),
         untrusted=scale.n_untrusted,
         unpaired=0 if scale.tested.unpaired is None else int(scale.tested.unpaired.any(axis=-1).sum()),
+        sparse=0 if scale.tested.sparse is None else int(scale.tested.sparse.any(axis=-1).sum()),
         significant=int(np.asarray(significant).any(axis=-1).sum()),
         p_value=p_value,
         ruled_out=worst if worst <= MAX_SHOWN_BOUND else None,

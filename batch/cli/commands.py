@@ -49,10 +49,18 @@ def tolerance_or_off(text: str) -> float | None:
 
 
 class Parser(argparse.ArgumentParser):
-    """argparse with a usage error in one line (its usage block of a dozen lines hid the reason)."""
+    """argparse with a usage error in one line (its usage block of a dozen lines hid the reason), also as an
+    ``error`` event when the command line asks for JSON progress (a caller reading events learns why)."""
+
+    json_progress = False  # set by `main` from the command line, for every (sub)parser
 
     def error(self, message: str):
-        self.exit(Exit.USAGE, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+        text = f"{self.prog}: error: {message} (see {self.prog} --help)"
+        if Parser.json_progress:
+            from ..present.progress import Progress
+
+            Progress(0, json_lines=True).error(" ".join(text.split()))
+        self.exit(Exit.USAGE, text + "\n")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -393,6 +401,7 @@ def main(argv: list[str] | None = None) -> int:
     for stream in (sys.stdout, sys.stderr):
         if hasattr(stream, "reconfigure"):
             stream.reconfigure(errors="backslashreplace")
+    Parser.json_progress = "--json-progress" in (sys.argv[1:] if argv is None else argv)
     args = build_parser().parse_args(argv)
     try:
         with SigtermAsInterrupt():

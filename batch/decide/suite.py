@@ -464,21 +464,22 @@ def _run_case(
     if problem:
         return CaseResult(case, device, "error", message=f"the reference {reference_path(refs, case)}: {problem}")
     first = max(reference.seeds) + 1 + seed_offset
-    budget = case.passes if case.seconds is None else None
-    count = budget or 100_000
+    # `passes` bounds the test side under a time budget too: past the reference's passes the two means differ in
+    # how often they catch a rare bright path, which Welch's t does not forgive when one side has few passes.
+    budget, count = (case.passes if case.seconds is None else None), case.passes
     start = time.perf_counter()
+    resume = resume and (folder / "check.json").exists()  # a case the interrupted run had not started is new
     try:
+        test = case.job(str(folder / "test.npz"), range(first, first + count), device, blender, overrides, True, python)
         job = CheckJob(
             reference=case.job(str(reference_path(refs, case)), reference.seeds, reference.info.device or "CPU", None),
-            test=case.job(
-                str(folder / "test.npz"), range(first, first + count), device, blender, overrides, True, python
-            ),  # fmt: skip
+            test=test.replace(resume=resume),
             out=str(folder),
             max_passes=budget,
             max_seconds=case.seconds,
             alpha=suite.alpha,
             tolerance=case.tolerance,
-            resume=resume and (folder / "check.json").exists(),
+            resume=resume,
             fixed_reference=True,
         )
         verdict, summary = run_check(job, progress_factory(count), where)

@@ -194,15 +194,22 @@ def notes(c: wc.Comparison, outcome: wc.Outcome | None = None) -> list[str]:
     elif untrusted == valid and valid:
         out.append(
             f"all {valid} testable {c.tile}x{c.tile} tiles have clearly non-normal Welch samples "
-            "(fireflies or caustics)"
-        )
+            + ("(fireflies, caustics, or differences that are mostly exact zeros)" if outcome.scales[0].sparse else
+               "(fireflies or caustics)")
+        )  # fmt: skip
     elif untrusted:
         out.append(f"{untrusted} of {valid} {c.tile}x{c.tile} tiles have clearly non-normal Welch samples")
+    sparse = [f"{s.sparse} of {s.tiles} at {s.tile}x{s.tile}" for s in outcome.scales if s.sparse]
+    if sparse:
+        out.append(
+            "tiles whose per-pass differences are mostly exact zeros (a change that alters a few light paths, not "
+            f"fireflies): {', '.join(sparse)}"
+        )
     unpaired = [f"{s.unpaired} of {s.tiles} at {s.tile}x{s.tile}" for s in outcome.scales if s.unpaired]
     if unpaired:
         out.append(
-            "tiles whose per-pass differences are far from normal (a change that alters a few light paths: most "
-            "differences zero, a few large) were tested by Welch's test on the two sides instead "
+            "tiles whose per-pass differences are far from normal while each side's are not were tested by Welch's "
+            "test on the two sides instead "
             f"({', '.join(unpaired)}; conservative, the shared seeds correlate the sides)"
         )
     if outcome.untestable:
