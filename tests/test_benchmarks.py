@@ -40,3 +40,15 @@ def test_quick_benchmarks_write_every_output(tmp_path):
     readme = (out / "README.md").read_text()
     for png in pngs:
         assert f"({png.name})" in readme
+
+
+@pytest.mark.slow
+def test_the_production_benchmark_splits_the_wall_time():
+    """At a tiny size (the figure is for 1920x1080): it runs a check and the bare renders and prints the split."""
+    run = subprocess.run([sys.executable, "-m", "benchmarks.production", "--resolution", "64", "36", "--spp", "1",
+                          "--passes", "2"], cwd=REPO, capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    lines = run.stdout.splitlines()
+    assert lines[0] == "textured at 64x36, 1 spp a pass, 2 passes a side, 1 look", lines
+    assert lines[2].startswith("  everything else ") and lines[2].endswith(" % of the wall time")
+    assert "peak memory: the largest process of the check" in lines[3]
