@@ -52,3 +52,19 @@ def test_the_production_benchmark_splits_the_wall_time():
     assert lines[0] == "textured at 64x36, 1 spp a pass, 2 passes a side, 1 look", lines
     assert lines[2].startswith("  everything else ") and lines[2].endswith(" % of the wall time")
     assert "peak memory: the largest process of the check" in lines[3]
+
+
+@pytest.mark.slow
+def test_the_sparse_differences_study_writes_its_table_and_chart(tmp_path):
+    """The quick form (tiny pools, few trials): every case, size and method has a row, and the chart is written."""
+    run = subprocess.run([sys.executable, "-m", "benchmarks.sparse", "--quick", "--out", str(tmp_path), "--cache",
+                          str(tmp_path / "cache")], cwd=REPO, capture_output=True, text=True, timeout=600)  # fmt: skip
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    import csv
+
+    from benchmarks import sparse
+
+    rows = list(csv.DictReader(open(tmp_path / "sparse.csv")))
+    assert len(rows) == len(sparse.CASES) * len(sparse.QUICK["passes"]) * len(sparse.METHODS)
+    assert all(0 <= int(r["biased"]) + int(r["inconclusive"]) <= int(r["trials"]) for r in rows)
+    assert (tmp_path / "sparse.png").stat().st_size > 10_000
