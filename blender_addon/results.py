@@ -157,10 +157,22 @@ def _image_editors(context):
                 yield area
 
 
+#: The workspace of the default layout whose Image Editor shows renders (factory startup and most startup files).
+RENDER_WORKSPACE = "Rendering"
+#: The Image Editor sidebar's tab where the result is (`blender_addon.ui.WELCH_BIAS_PT_image_editor`).
+SIDEBAR_TAB = "Welch"
+
+
 def show_in_image_editor(context, image, sidebar: bool = False) -> bool:
-    """Show ``image`` in an Image Editor: an open one, else the render window Blender opens with F11. With
-    `sidebar` (a finished run), also open the editor's sidebar, where the result is, and fit the image to it."""
+    """Show ``image`` in an Image Editor: an open one, else the Image Editor of the Rendering workspace (switched
+    to, as the place a default layout keeps for renders), else the render window Blender opens with F11 (whose
+    size follows the render resolution: a few hundred pixels for a small test scene). With `sidebar` (a finished
+    run), also open the editor's sidebar, where the result is, and fit the image to it."""
     area = next(_image_editors(context), None)
+    workspace = bpy.data.workspaces.get(RENDER_WORKSPACE)
+    if area is None and not bpy.app.background and context.window is not None and workspace is not None:
+        context.window.workspace = workspace
+        area = next((a for a in workspace.screens[0].areas if a.type == "IMAGE_EDITOR"), None)
     if area is None and not bpy.app.background:
         try:
             bpy.ops.render.view_show("INVOKE_DEFAULT")
@@ -170,17 +182,31 @@ def show_in_image_editor(context, image, sidebar: bool = False) -> bool:
     if area is None:
         return False
     space = area.spaces.active
+    newly = space.image != image
     space.image = image
     if sidebar:
         space.show_region_ui = True
-        region = next((r for r in area.regions if r.type == "WINDOW"), None)
-        try:
-            with context.temp_override(area=area, region=region, space_data=space):
-                bpy.ops.image.view_all(fit_view=True)
-        except (RuntimeError, TypeError):
-            pass  # no drawable region (background mode)
+        for ui in (r for r in area.regions if r.type == "UI"):
+            if hasattr(ui, "active_panel_category"):  # Blender 4.2+; 3.4 keeps the tab last chosen
+                ui.active_panel_category = SIDEBAR_TAB
+    if (sidebar or newly) and not bpy.app.background:
+        # Once the editor has drawn: a workspace just switched to has no region size yet.
+        bpy.app.timers.register(lambda: _fit(area), first_interval=0.1)
     area.tag_redraw()
     return True
+
+
+def _fit(area) -> None:
+    """Fit the image to its Image Editor (the map opened at 1:1 is a small square in a large editor)."""
+    window = next((w for w in bpy.context.window_manager.windows if area in w.screen.areas[:]), None)
+    region = next((r for r in area.regions if r.type == "WINDOW"), None)
+    if window is None or region is None:
+        return  # the area went away (another workspace, a closed window)
+    try:
+        with bpy.context.temp_override(window=window, area=area, region=region, space_data=area.spaces.active):
+            bpy.ops.image.view_all(fit_view=True)
+    except (RuntimeError, TypeError, ReferenceError):
+        pass
 
 
 def frame_tile(context, x: int, y: int, size: int) -> bool:

@@ -11,6 +11,7 @@ import bpy
 
 from . import runner
 from ._siblings import fmt
+from .results import SIDEBAR_TAB
 from .session import settings_key
 from .state import current
 
@@ -244,7 +245,7 @@ class WELCH_BIAS_PT_image_editor(bpy.types.Panel):
     bl_label = "Welch Bias Test"
     bl_space_type = "IMAGE_EDITOR"
     bl_region_type = "UI"
-    bl_category = "Welch"
+    bl_category = SIDEBAR_TAB
 
     def draw(self, context):
         draw_panel(self.layout, context, setup=False)
