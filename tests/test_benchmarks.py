@@ -49,6 +49,7 @@ def test_the_production_benchmark_splits_the_wall_time():
                           "--passes", "2"], cwd=REPO, capture_output=True, text=True, timeout=300)  # fmt: skip
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
     lines = run.stdout.splitlines()
+    lines = lines[2:]  # after the progress lines
     assert lines[0] == "textured at 64x36, 1 spp a pass, 2 passes a side, 1 look", lines
     assert lines[2].startswith("  everything else ") and lines[2].endswith(" % of the wall time")
     assert "peak memory: the largest process of the check" in lines[3]
