@@ -146,8 +146,45 @@ def test_legacy_addon_compares_statistics_files_in_blender_34(tmp_path, legacy_z
 
 # -- in a window -----------------------------------------------------------------------------------------------
 
-GUI_SCRIPT = textwrap.dedent(
+#: The end of every window script: after installing and enabling the add-on, step the script's `steps()` from a
+#: timer (each yield waits that many seconds for Blender's event loop); the script's `finish` ends the session.
+SESSION = textwrap.dedent(
     """
+
+    STEPS = steps()
+
+
+    def tick():
+        try:
+            return next(STEPS)
+        except StopIteration:
+            finish()
+        except Exception:
+            finish(traceback.format_exc())
+        return None
+
+
+    def watchdog():
+        finish(f"the session did not end within 100 s: {report.get('log', '')}")
+
+
+    try:
+        preferences = bpy.context.preferences
+        preferences.view.show_splash = False
+        preferences.filepaths.temporary_directory = os.path.join(WORK, "")
+        report["install"] = sorted(bpy.ops.preferences.addon_install(filepath=ZIP, overwrite=True))
+        report["enable"] = sorted(bpy.ops.preferences.addon_enable(module=MODULE))
+        bpy.app.timers.register(tick, first_interval=0.5)
+        bpy.app.timers.register(watchdog, first_interval=100.0)
+    except Exception:
+        finish(traceback.format_exc())
+    """
+)
+
+
+GUI_SCRIPT = (
+    textwrap.dedent(
+        """
     \"\"\"In Blender's window: install the add-on, build the corner scene, press Run (the modal operator), wait for
     the verdict, show the Render Result with the overlay, take screenshots without and with it, report, quit.\"\"\"
     import importlib, json, os, sys, time, traceback
@@ -287,35 +324,9 @@ GUI_SCRIPT = textwrap.dedent(
         ]
         report["overlay"] = {"error": state.overlay_error, "uploaded": state.overlay_batches is not None}
 
-
-    STEPS = steps()
-
-
-    def tick():
-        try:
-            return next(STEPS)
-        except StopIteration:
-            finish()
-        except Exception:
-            finish(traceback.format_exc())
-        return None
-
-
-    def watchdog():
-        finish(f"the session did not end within 100 s: {report['log']}")
-
-
-    try:
-        preferences = bpy.context.preferences
-        preferences.view.show_splash = False
-        preferences.filepaths.temporary_directory = os.path.join(WORK, "")
-        report["install"] = sorted(bpy.ops.preferences.addon_install(filepath=ZIP, overwrite=True))
-        report["enable"] = sorted(bpy.ops.preferences.addon_enable(module=MODULE))
-        bpy.app.timers.register(tick, first_interval=0.5)
-        bpy.app.timers.register(watchdog, first_interval=100.0)
-    except Exception:
-        finish(traceback.format_exc())
     """
+    )
+    + SESSION
 )
 
 
@@ -393,8 +404,9 @@ def test_run_in_a_blender_34_window_shows_the_verdict_and_the_overlay(tmp_path, 
 
 # -- in the factory-default layout -------------------------------------------------------------------------------
 
-DEFAULT_LAYOUT_SCRIPT = textwrap.dedent(
-    """
+DEFAULT_LAYOUT_SCRIPT = (
+    textwrap.dedent(
+        """
     \"\"\"The factory-default layout, as a new user meets it: nothing split, widened or scrolled. Set up the corner
     scene, press Run in Properties > Render, take a screenshot at the first live map and one when it is decided.\"\"\"
     import importlib, json, os, sys, time, traceback
@@ -466,30 +478,9 @@ DEFAULT_LAYOUT_SCRIPT = textwrap.dedent(
         report["done"] = editor(window) | {"verdict": state.result["verdict"], "windows": len(wm.windows)}
         shot(SHOT_DONE, window)
 
-
-    STEPS = steps()
-
-
-    def tick():
-        try:
-            return next(STEPS)
-        except StopIteration:
-            finish()
-        except Exception:
-            finish(traceback.format_exc())
-        return None
-
-
-    try:
-        preferences = bpy.context.preferences
-        preferences.view.show_splash = False
-        preferences.filepaths.temporary_directory = os.path.join(WORK, "")
-        bpy.ops.preferences.addon_install(filepath=ZIP, overwrite=True)
-        bpy.ops.preferences.addon_enable(module=MODULE)
-        bpy.app.timers.register(tick, first_interval=0.5)
-    except Exception:
-        finish(traceback.format_exc())
     """
+    )
+    + SESSION
 )
 DEFAULT_LAYOUT_SCREENSHOT = ROOT / "docs" / "screenshots" / "addon_default_layout.png"
 
@@ -513,6 +504,7 @@ def test_a_run_in_the_factory_default_layout_shows_its_map_where_renders_are_sho
     done = subprocess.run(command, env=blender_env(tmp_path), capture_output=True, text=True, timeout=150)
     report = report_of(done, tmp_path / "report.json")
 
+    assert report["install"] == report["enable"] == ["FINISHED"]
     assert report["layout"] == ["Layout", ["DOPESHEET_EDITOR", "OUTLINER", "PROPERTIES", "VIEW_3D"]]
     assert report["run"] == ["RUNNING_MODAL"]
     final = report["done"]

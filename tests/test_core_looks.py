@@ -141,19 +141,26 @@ def test_information_fractions():
     assert information_fraction(80, 64, 32) == pytest.approx((1 / 32 + 1 / 64) / (1 / 32 + 1 / 80))
 
 
+def biased_of_unbiased(seed: int, trials: int, plan, ref_passes: int = 64, **looks) -> int:
+    """How many of `trials` unbiased sequences (skewed Welch samples, standard deviations 1:3, 64 test passes)
+    `check`'s looks call `biased`."""
+    rng = np.random.default_rng(seed)
+    mean = rng.uniform(50.0, 150.0, size=(2, 2, 3))
+    biased = 0
+    for _ in range(trials):
+        ref_sums, test_sums = skewed_sequence(rng, ref_passes, mean, 1.0), skewed_sequence(rng, 64, mean, 3.0)
+        biased += run_looks(ref_sums, test_sums, plan, **looks)[-1].verdict == "biased"
+    return biased
+
+
 @pytest.mark.slow
 def test_biased_stays_calibrated_when_the_budget_grows_after_the_last_look():
     """1000 unbiased sequences as above, planned for 16 passes and, since none may decide by then, given 64: the
     looks past 16 spend the 10 % of alpha the plan kept for them (`EXTENSION_RESERVE`). `biased` in at most
     alpha = 0.05 (limit 73) over all of it. Measured: 31 of 1000 (3.1 %; 62 of 2000 before); the spending caps it
     at 0.05 (1 - 0.1 / 4) = 4.9 %."""
-    rng = np.random.default_rng(20261204)
-    mean = rng.uniform(50.0, 150.0, size=(2, 2, 3))
     plan = SequentialPlan(max_passes=16, alpha=0.05, tolerance=None)
-    biased = 0
-    for _ in range(1000):
-        ref_sums, test_sums = skewed_sequence(rng, 64, mean, 1.0), skewed_sequence(rng, 64, mean, 3.0)
-        biased += run_looks(ref_sums, test_sums, plan, budget=64)[-1].verdict == "biased"
+    biased = biased_of_unbiased(20261204, 1000, plan, budget=64)
     print(f"biased in {biased} of 1000")
     assert biased <= stats.binom.ppf(0.999, 1000, 0.05), biased
 
@@ -164,13 +171,8 @@ def test_biased_is_calibrated_with_a_fixed_reference():
     unbiased sequences as above (skewness 1, standard deviations 1:3): `biased` in at most alpha = 0.05 (limit
     73). Measured: 42 of 1000 (4.2 %; 94 of 2000 before); with the reference the noisier side (3:1), 35 of 2000
     (before the reserve for a grown budget)."""
-    rng = np.random.default_rng(20261203)
-    mean = rng.uniform(50.0, 150.0, size=(2, 2, 3))
     plan = SequentialPlan(max_passes=64, alpha=0.05, tolerance=None)
-    biased = 0
-    for _ in range(1000):
-        ref_sums, test_sums = skewed_sequence(rng, 32, mean, 1.0), skewed_sequence(rng, 64, mean, 3.0)
-        biased += run_looks(ref_sums, test_sums, plan, fixed_reference=True)[-1].verdict == "biased"
+    biased = biased_of_unbiased(20261203, 1000, plan, ref_passes=32, fixed_reference=True)
     print(f"biased in {biased} of 1000")
     assert biased <= stats.binom.ppf(0.999, 1000, 0.05), biased
 
