@@ -259,6 +259,25 @@ def draw_status(self, _context):
         row.operator("welch_bias.cancel", text="", icon="CANCEL")
 
 
+def draw_image_header(self, context):
+    """The verdict in the header of an Image Editor showing the map, so it is read without opening the sidebar
+    (Blender 3.4 opens the sidebar on the tab it last showed)."""
+    result, space = current.result, context.space_data
+    image = getattr(space, "image", None)
+    if result is None or image is None or image.name != result["image"]:
+        return
+    row = self.layout.row()
+    row.alert = result["verdict"] == "biased"
+    row.label(text=headline(result), icon=result["verdict_icon"])
+
+
+def headline(result) -> str:
+    """The verdict's title and the first clause of its sentence (what it claims, with its numbers)."""
+    sentence = result["sentence"]
+    claim = sentence.split(": ", 1)[1] if ": " in sentence else ""
+    return f"{result['verdict_title']}: {claim.split('; ', 1)[0]}" if claim else result["verdict_title"]
+
+
 classes = (WELCH_BIAS_MT_override_presets, WELCH_BIAS_PT_render, WELCH_BIAS_PT_image_editor)
 
 _register_classes, _unregister_classes = bpy.utils.register_classes_factory(classes)
@@ -267,8 +286,10 @@ _register_classes, _unregister_classes = bpy.utils.register_classes_factory(clas
 def register():
     _register_classes()
     bpy.types.STATUSBAR_HT_header.append(draw_status)
+    bpy.types.IMAGE_HT_header.append(draw_image_header)
 
 
 def unregister():
+    bpy.types.IMAGE_HT_header.remove(draw_image_header)
     bpy.types.STATUSBAR_HT_header.remove(draw_status)
     _unregister_classes()

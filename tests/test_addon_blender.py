@@ -585,3 +585,16 @@ def test_the_map_shows_a_chosen_light_component(scene, tmp_path):
     assert not np.allclose(read_pixels(image), combined)  # the glossy layer's p-values colour the map now
     texts = draw_panel().texts()
     assert any("glossy: Biased" in text for text in texts)
+
+
+def test_the_image_editor_header_states_the_verdict_and_its_first_claim():
+    """What the header of an Image Editor showing the map says (read without opening the sidebar)."""
+    result = {"verdict_title": "Biased", "sentence": "biased: whole image +10.93 % [+8.52 %, +12.61 %]; most "
+              "significant +11.04 % [+2.83 %, +18.40 %] in R of the 32x32 tile at x 32, y 32 (p 2.24e-06)"}  # fmt: skip
+    assert ui.headline(result) == "Biased: whole image +10.93 % [+8.52 %, +12.61 %]"
+    result = {
+        "verdict_title": "No Verdict Yet (3 Passes)",
+        "sentence": "so far: whole image +1.00 % [-2.00 %, +4.00 %]",
+    }
+    assert ui.headline(result) == "No Verdict Yet (3 Passes): whole image +1.00 % [-2.00 %, +4.00 %]"
+    assert ui.headline({"verdict_title": "Equivalent", "sentence": "equivalent"}) == "Equivalent"

@@ -441,7 +441,8 @@ DEFAULT_LAYOUT_SCRIPT = (
         image = area.spaces.active.image
         return {"workspace": window.workspace.name, "area": rect(area), "image": image and image.name,
                 "image_rect": [regions["WINDOW"].x + x0, regions["WINDOW"].y + y0, x1 - x0, y1 - y0],
-                "sidebar": area.spaces.active.show_region_ui, "sidebar_rect": rect(regions["UI"])}
+                "sidebar": area.spaces.active.show_region_ui, "sidebar_rect": rect(regions["UI"]),
+                "header_rect": rect(regions["HEADER"])}
 
 
     def steps():
@@ -474,6 +475,8 @@ DEFAULT_LAYOUT_SCRIPT = (
             if time.monotonic() - started > 80:
                 raise RuntimeError("no verdict within 80 s")
             yield 0.2
+        for area in window.screen.areas:  # the header and the sidebar show the result from their next draw
+            area.tag_redraw()
         yield 1.5
         report["done"] = editor(window) | {"verdict": state.result["verdict"], "windows": len(wm.windows)}
         shot(SHOT_DONE, window)
@@ -489,8 +492,8 @@ DEFAULT_LAYOUT_SCREENSHOT = ROOT / "docs" / "screenshots" / "addon_default_layou
 def test_a_run_in_the_factory_default_layout_shows_its_map_where_renders_are_shown(tmp_path, legacy_zip):
     """Nothing arranged by the test: the live map and the result open in the Rendering workspace's Image Editor
     (the default layout's place for renders), fitted to it, the sidebar open when decided, in the one window (no
-    render window sized by the 64 px render). Blender 3.4 has no way to choose the sidebar's tab from Python: it
-    keeps the tab the file last showed (4.2 and later are switched to the Welch tab)."""
+    render window sized by the 64 px render), the verdict in the editor's header. Blender 3.4 has no way to choose
+    the sidebar's tab from Python: it keeps the tab the file last showed (4.2 and later are switched to Welch)."""
     reason = missing_blender_34(gui=True)
     if reason:
         pytest.skip(reason)
@@ -515,6 +518,9 @@ def test_a_run_in_the_factory_default_layout_shows_its_map_where_renders_are_sho
     assert image_rect[2] > 500 and image_rect[3] > 500, final  # fitted to it
     assert final["sidebar_rect"][2] > 150, final
     pixels = matplotlib.image.imread(done_shot)
+    header = crop(pixels, final["header_rect"])  # the verdict, in the alert colour, without opening a tab
+    alert = ((header[..., 0] > 0.6) & (header[..., 1] < 0.5) & (header[..., 2] < 0.5)).sum()
+    assert alert > 20, (alert, final, done_shot)
     shown = crop(pixels, image_rect)
     assert (shown.mean(axis=-1) > 0.3).mean() > 0.9 and viridis_yellow(shown).mean() > 0.1  # drawn, not black
     if "running" in report:  # the first look did not decide: the live map was shown the same way, fitted
