@@ -198,14 +198,14 @@ def show_in_image_editor(context, image, sidebar: bool = False) -> bool:
 
 def _fit(area) -> None:
     """Fit the image to its Image Editor (the map opened at 1:1 is a small square in a large editor)."""
-    window = next((w for w in bpy.context.window_manager.windows if area in w.screen.areas[:]), None)
-    region = next((r for r in area.regions if r.type == "WINDOW"), None)
-    if window is None or region is None:
-        return  # the area went away (another workspace, a closed window)
     try:
+        window = next((w for w in bpy.context.window_manager.windows if area in w.screen.areas[:]), None)
+        region = next((r for r in area.regions if r.type == "WINDOW"), None)
+        if window is None or region is None:
+            return  # the area is not shown any more (another workspace, a closed window)
         with bpy.context.temp_override(window=window, area=area, region=region, space_data=area.spaces.active):
             bpy.ops.image.view_all(fit_view=True)
-    except (RuntimeError, TypeError, ReferenceError):
+    except (RuntimeError, TypeError, ReferenceError):  # the area was freed meanwhile
         pass
 
 
