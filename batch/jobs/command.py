@@ -33,7 +33,7 @@ from ..errors import BatchError
 PLACEHOLDERS = ("seed", "out", "spp", "set", "python")
 REQUIRED = ("seed", "out")
 
-#: The run record's renderer for passes of a command (its version is the template's hash: see `run_info`).
+#: The run record's renderer for passes of a command (the template's hash is the run's `scene_id`: `scene_id`).
 RENDERER = "command"
 
 #: The end of a failed command's output shown in the error (its last lines say why, as a rule).
@@ -53,7 +53,7 @@ def words(template: str) -> list[str]:
     seen = set()
     for word in split:
         try:
-            fields = [field for _, field, spec, conversion in string.Formatter().parse(word) if field is not None]
+            fields = [field for _, field, _, _ in string.Formatter().parse(word) if field is not None]
         except ValueError as exc:
             raise BatchError(f"--command {template!r}: {exc} (write {{{{ and }}}} for a literal brace)") from None
         for field in fields:
