@@ -158,3 +158,23 @@ def test_a_time_budget_is_spent_on_passes_not_on_start_up(tmp_path):
     state = json.loads((tmp_path / "check.json").read_text())
     assert 0.5 * 4 <= state["render_seconds"] <= 4 * 1.3, state["render_seconds"]
     assert state["plan"]["max_passes"] > 20
+
+
+@pytest.mark.slow
+def test_a_check_started_before_the_early_design_resumes_without_it(tmp_path):
+    """The design is fixed before the data: a check's state records the early design's share of `biased` (half
+    by 16 passes a side) and a resumed check keeps it; a state written before that design existed has no such
+    field and resumes as it was started, with none."""
+    common = (*SMALL, "--unpaired", "--tolerance", "0.01%", "--out", tmp_path)
+    check(*common, "--max-passes", 18, expect=3)
+    state = json.loads((tmp_path / "check.json").read_text())
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert state["plan"]["early_share"] == 0.5 and report["check"]["early_share"] == 0.5
+    assert report["check"]["early_passes"] == 16 and "50% of it by 16 passes a side" in report["method"]
+    del state["plan"]["early_share"]
+    (tmp_path / "check.json").write_text(json.dumps(state))
+    check(*common, "--max-passes", 21, "--resume", expect=3)
+    state = json.loads((tmp_path / "check.json").read_text())
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert state["plan"]["early_share"] == 0.0 and report["check"]["early_share"] == 0.0
+    assert state["looks"][-1]["passes"] == 21 and "by 16 passes" not in report["method"]

@@ -2,6 +2,7 @@
 under the stopping rule, on synthetic sequences of Welch samples that are skewed and of unequal variances."""
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -9,7 +10,8 @@ from scipy import stats
 
 from tests.synthetic import make_run, scene_means, tile_sum_samples
 from welch_core import SequentialPlan, TileStats, WelchInputError, compare, look_schedule, sequential_look
-from welch_core.looks import information_fraction
+from welch_core.looks import EARLY_PASSES, EARLY_SHARE, biased_levels, information_fraction
+from welch_core.sequential import boundaries, nominal_levels
 
 
 def test_look_schedule():
@@ -30,11 +32,39 @@ def test_look_schedule():
         ({"max_passes": 8, "alpha": 2.0}, "`alpha` must be a number in (0, 1), got 2.0"),
         ({"max_passes": 8, "tolerance": 0.0}, "`tolerance` must be a relative difference in (0, 10), got 0.0"),
         ({"max_passes": 8, "spending": "haybittle"}, "`spending` must be one of ('obrien_fleming', 'pocock')"),
+        ({"max_passes": 8, "early_share": 1.0}, "`early_share` must lie in [0, 1), got 1.0"),
     ],
 )
 def test_bad_plans(kwargs, message):
-    with pytest.raises(WelchInputError, match=message.replace("(", r"\(").replace(")", r"\)")):
+    with pytest.raises(WelchInputError, match=re.escape(message)):
         SequentialPlan(**kwargs)
+
+
+def test_biased_levels_are_the_larger_of_the_early_and_the_main_design():
+    """Half of each `biased` level is spent by 16 passes a side (Pocock over the fractions scaled to end there),
+    half over the budget; a look's level is the larger of the two designs' (a union bound keeps the share)."""
+    plan, shares = SequentialPlan(max_passes=512), [1e-6, 1e-4]
+    schedule = look_schedule(512)
+    fractions = [n / 512 for n in schedule]
+    early_end = next(k for k, n in enumerate(schedule) if n >= EARLY_PASSES)
+    for k in (0, 3, early_end, early_end + 1, len(schedule) - 1):
+        got = biased_levels(fractions[: k + 1], shares, plan)
+        main = nominal_levels(boundaries(fractions[: k + 1], [s * (1 - EARLY_SHARE) for s in shares], "pocock", 0.1))
+        expected = main[-1]
+        if k <= early_end:
+            scaled = np.minimum(np.array(fractions[: k + 1]) * 512 / EARLY_PASSES, 1.0)
+            early = nominal_levels(boundaries(scaled, [s * EARLY_SHARE for s in shares], "pocock"))[-1]
+            expected = np.maximum(expected, early)
+        np.testing.assert_array_equal(got, expected)
+    # the first look: about 21 times the level of Pocock over the whole budget alone, the last about half of it
+    alone = SequentialPlan(max_passes=512, early_share=0.0)
+    first = biased_levels(fractions[:1], shares, plan) / biased_levels(fractions[:1], shares, alone)
+    last = biased_levels(fractions, shares, plan) / biased_levels(fractions, shares, alone)
+    assert np.all((first > 15) & (first < 30)) and np.all((last > 0.45) & (last < 0.55)), (first, last)
+    # a budget that ends where the early design would has none: the plain design, every share whole
+    short = SequentialPlan(max_passes=EARLY_PASSES)
+    plain = nominal_levels(boundaries([2 / 16, 3 / 16], shares, "pocock", 0.1))[-1]
+    np.testing.assert_array_equal(biased_levels([2 / 16, 3 / 16], shares, short), plain)
 
 
 def run_looks(ref_sums, test_sums, plan, ref_seeds=None, test_seeds=None, fixed_reference=False, budget=None):
@@ -220,4 +250,5 @@ def test_biased_at_early_looks_is_calibrated_with_firefly_samples(paired):
         else:
             looks = run_looks(a, firefly_sequence(rng, 64, (4, 4, 3)), plan)
         biased += looks[-1].verdict == "biased"
+    print(f"biased in {biased} of 300")
     assert biased <= stats.binom.ppf(0.999, 300, 0.05), biased

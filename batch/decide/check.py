@@ -66,9 +66,16 @@ class CheckJob:
     workers: int | None = None
     scheduler: str | None = None
 
-    def plan(self, max_passes: int) -> wc.SequentialPlan:
+    def plan(self, max_passes: int, early_share: float | None = None) -> wc.SequentialPlan:
+        """The design for `max_passes`; a resumed check keeps the early share it was started with (None: the
+        default)."""
+        early = {} if early_share is None else {"early_share": early_share}
         return wc.SequentialPlan(
-            max_passes=max_passes, alpha=self.alpha, tolerance=self.tolerance, equivalence_tile=self.equivalence_tile
+            max_passes=max_passes,
+            alpha=self.alpha,
+            tolerance=self.tolerance,
+            equivalence_tile=self.equivalence_tile,
+            **early,
         )
 
     @property
@@ -174,12 +181,13 @@ class Check:
         stored = None
         if state.get("plan") is not None:  # None: stopped before a time budget became a pass budget
             try:
-                stored = wc.SequentialPlan(**state["plan"])
+                # a check started before the early design existed goes on without it
+                stored = wc.SequentialPlan(**{"early_share": 0.0, **state["plan"]})
             except (KeyError, TypeError, wc.WelchInputError) as exc:
                 raise BatchError(f"{path} is not a readable check state ({exc})") from None
         budget = state.get("budget") or (stored.max_passes if stored is not None else None)
         if stored is not None and state.get("max_seconds") is None and self.job.max_seconds is None:
-            planned = self.job.plan(stored.max_passes)  # the design is the stored one; only the budget may grow
+            planned = self.job.plan(stored.max_passes, stored.early_share)  # the stored design; the budget may grow
             if planned != stored:
                 raise BatchError(f"can't resume {self.job.out}: it was started with another alpha or tolerance")
             if self.job.max_passes < budget:
@@ -189,7 +197,7 @@ class Check:
                 )
             budget = self._grown_budget(stored, budget)
         else:
-            planned = self.job.plan(stored.max_passes) if stored is not None else None
+            planned = self.job.plan(stored.max_passes, stored.early_share) if stored is not None else None
             if planned != stored or state.get("max_seconds") != self.job.max_seconds or grown:
                 raise BatchError(
                     f"can't resume {self.job.out}: it was started with another budget, alpha or tolerance"
@@ -425,7 +433,8 @@ def report_check(check: Check, look: wc.Look, ref: wc.TileStats, test: wc.TileSt
     job = check.job
     comparison = wc.compare(ref, test, job.alpha, tolerance=job.tolerance)
     layers = (wc.load_layers(job.reference.out, pixels=False), wc.load_layers(job.test.out, pixels=False))
-    record = check_record(job, check.looks, check.plan.max_passes, look)
+    early = (check.plan.early, wc.looks.EARLY_PASSES)
+    record = check_record(job, check.looks, check.plan.max_passes, look, early)
     return present(job.out, comparison, ref, test, outcome=look.outcome, check=record, layers=layers), comparison
 
 

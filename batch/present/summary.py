@@ -67,7 +67,7 @@ def summarize(
         "alpha": outcome.alpha,
         "p_value": data["p_value"],
         "test": outcome.test,
-        "method": words.method(data, c.pvalue_method),
+        "method": words.method(data, c.pvalue_method, check),
         "pvalue_method": c.pvalue_method,
         "outcome": data,
         "n_ref": outcome.n_ref,
@@ -297,14 +297,20 @@ def warnings(summary: dict[str, Any]) -> list[str]:
     return out
 
 
-def check_record(job, looks: list[dict], max_passes: int, last) -> dict[str, Any]:
-    """What a `check` adds to its summary: the design (budget, tolerance, pairing), the looks, how it ended."""
+def check_record(
+    job, looks: list[dict], max_passes: int, last, early: tuple[float, int] | None = None
+) -> dict[str, Any]:
+    """What a `check` adds to its summary: the design (budget, tolerance, pairing, the early design's share of
+    `biased` and the passes where it ends), the looks, how it ended."""
+    share, passes = early if early is not None else (0.0, None)
     return {
         "max_passes": max_passes,
         "max_seconds": job.max_seconds,
         "tolerance": job.tolerance,
         "paired": job.paired,
         "spending": "pocock",
+        "early_share": share,
+        "early_passes": passes if share else None,
         "passes": last.passes,
         "looks": looks,
         "stopped": "decided" if last.verdict is not None else "budget spent",

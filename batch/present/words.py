@@ -136,15 +136,22 @@ def sentence(outcome: dict[str, Any]) -> str:
     return "; ".join(parts)
 
 
-def method(outcome: dict[str, Any], pvalue_method: str = "exact") -> str:
-    """How the verdict was reached, in a sentence."""
+def _early(check: dict[str, Any] | None) -> str:
+    """The early design's part of the spending, when the check had one."""
+    if not (check or {}).get("early_share"):
+        return ""
+    return f"; {check['early_share']:.0%} of it by {check['early_passes']} passes a side, the rest over the budget"
+
+
+def method(outcome: dict[str, Any], pvalue_method: str = "exact", check: dict[str, Any] | None = None) -> str:
+    """How the verdict was reached, in a sentence (`check`: the design of a check, see `summary.check_record`)."""
     name = "paired t-test on per-pass differences" if outcome["test"] == "paired" else "Welch's t-test"
     sizes = ", ".join(str(s["tile"]) for s in outcome["scales"])
     if outcome["design"] == "sequential":
         text = (
             f"{name} per tile and channel at tile sizes {sizes}, looked at after every chunk of passes: each "
             f"tile-channel of each size its Bonferroni share of alpha {outcome['alpha']:g}, spent over the looks "
-            "(Pocock); Welch's t with n - 1 degrees of freedom"
+            f"(Pocock{_early(check)}); Welch's t with n - 1 degrees of freedom"
         )
     else:
         text = (
