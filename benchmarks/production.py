@@ -9,6 +9,13 @@ two sides render, each calling Cycles' render operator on the same scene and set
 no statistics). Everything else is the check's wall time less the slower bare process's render time: start-up of
 the render processes, EXR write and read, accumulation, the looks, the report. Prints the split and the peak
 memory (resident set) of the largest process the check ran (itself or a render process).
+
+Everything else is then itemised from measurements of its parts in the same run: the start-up of a render process
+(launch to its first render, measured by the bare processes, which also save and read each pass's EXR as a pass
+does, timed apart from the render), the accumulation of a pass into the statistics and a look (timed here on a
+pass of that size and on the check's final statistics), and the report (the check's last look to its exit, from
+its progress events). The two sides render in parallel, so a side's parts count once; what is left is waiting:
+a look needs both sides' chunk, and the faster side idles until the slower is done.
 """
 
 from __future__ import annotations
@@ -33,46 +40,83 @@ BARE = textwrap.dedent(
     from batch.blender.run import prepare_scene
     from batch.jobs.job import RenderJob
 
-    scene_name, width, height, spp, passes, first = sys.argv[1:7]
+    scene_name, width, height, spp, passes, first, launched = sys.argv[1:8]
+    import welch_core as wc
+    from batch.blender.render import PassRenderer
     job = RenderJob(out="unused.npz", seeds=[0], spp=int(spp), scene=scene_name,
                     resolution=(int(width), int(height)))
     scene, _ = prepare_scene(job)
-    seconds = []
+    renderer = PassRenderer(scene)
+    seconds, io = [], []
+    startup = time.time() - float(launched)
     for seed in range(int(first), int(first) + int(passes)):
         scene.cycles.seed = seed
         start = time.perf_counter()
         bpy.ops.render.render(scene=scene.name)
         seconds.append(time.perf_counter() - start)
-    print(json.dumps({"seconds": seconds}))
+        start = time.perf_counter()
+        bpy.data.images["Render Result"].save_render(renderer.path, scene=scene)
+        wc.read_exr(renderer.path)
+        io.append(time.perf_counter() - start)
+    print(json.dumps({"seconds": seconds, "io": io, "startup": startup}))
     """
 )
 
 
-def bare(scene: str, resolution: tuple[int, int], spp: int, passes: int) -> float:
-    """Seconds of rendering alone for two sides of `passes` passes rendered at once (the slower side's)."""
+def bare(scene: str, resolution: tuple[int, int], spp: int, passes: int) -> dict:
+    """Two sides of `passes` passes rendered at once: the slower side's seconds of rendering alone, and the larger
+    start-up and EXR seconds (save and read of its passes) of the two."""
     argv = [sys.executable, "-c", BARE, scene, *map(str, resolution), str(spp), str(passes)]
-    procs = [subprocess.Popen([*argv, str(first)], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                              text=True) for first in (0, 1_000_000)]  # fmt: skip
-    totals = []
+    procs = [subprocess.Popen([*argv, str(first), repr(time.time())], cwd=REPO, stdout=subprocess.PIPE,
+                              stderr=subprocess.DEVNULL, text=True) for first in (0, 1_000_000)]  # fmt: skip
+    sides = []
     for proc in procs:
         out, _ = proc.communicate()
-        totals.append(sum(json.loads(out.strip().splitlines()[-1])["seconds"]))
-    return max(totals)
+        sides.append(json.loads(out.strip().splitlines()[-1]))
+    return {"render_s": max(sum(side["seconds"]) for side in sides), "startup_s": max(s["startup"] for s in sides),
+            "exr_s": max(sum(side["io"]) for side in sides)}  # fmt: skip
+
+
+def in_process(out: Path, resolution: tuple[int, int], looks: int) -> dict:
+    """Seconds of accumulating one pass of `resolution` into the statistics (as a render process does) and of
+    the check's `looks` looks, each on its final statistics."""
+    import numpy as np
+
+    import welch_core as wc
+
+    width, height = resolution
+    image = np.random.default_rng(0).random((height, width, 3), dtype=np.float32)
+    stats = wc.TileStats(height, width, 16)
+    start = time.perf_counter()
+    for seed in range(3):
+        stats.add_pass(image, seed)
+    accumulate = (time.perf_counter() - start) / 3
+    ref, test = wc.load_stats(out / "reference.npz"), wc.load_stats(out / "test.npz")
+    plan = wc.SequentialPlan(max_passes=ref.n, tolerance=None)
+    start = time.perf_counter()
+    wc.sequential_look(ref, test, plan, [1.0])
+    return {"accumulate_s": accumulate, "looks_s": looks * (time.perf_counter() - start)}
 
 
 def check(scene: str, resolution: tuple[int, int], spp: int, passes: int, out: Path) -> dict:
     argv = [sys.executable, "-m", "batch", "check", "--scene", scene, "--resolution", *map(str, resolution),
             "--spp", str(spp), "--max-passes", str(passes), "--unpaired", "--tolerance", "off",
-            "--out", str(out)]  # fmt: skip
+            "--out", str(out), "--json-progress"]  # fmt: skip
     start = time.perf_counter()
-    done = subprocess.run(argv, cwd=REPO, capture_output=True, text=True)
+    proc = subprocess.Popen(argv, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    last_look = start
+    for line in proc.stdout:
+        if line.startswith('{"event": "look"'):
+            last_look = time.perf_counter()
+    err = proc.stderr.read()
+    proc.wait()
     wall = time.perf_counter() - start
-    if done.returncode not in (0, 1, 3):
-        raise SystemExit(f"check failed (exit {done.returncode}): {done.stderr.strip()[-2000:]}")
+    if proc.returncode not in (0, 1, 3):
+        raise SystemExit(f"check failed (exit {proc.returncode}): {err.strip()[-2000:]}")
     state = json.loads((out / "check.json").read_text())
     children = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024  # MiB (Linux: KiB)
     return {"wall_s": wall, "looks": len(state["looks"]), "passes": state["looks"][-1]["passes"],
-            "largest_process_mib": children}  # fmt: skip
+            "report_s": wall - (last_look - start), "largest_process_mib": children}  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -87,14 +131,22 @@ def main(argv: list[str] | None = None) -> int:
           flush=True)  # fmt: skip
     with tempfile.TemporaryDirectory() as folder:
         measured = check(args.scene, resolution, args.spp, args.passes, Path(folder) / "check")
+        parts = in_process(Path(folder) / "check", resolution, measured["looks"])
     print(f"bare renders of the same {measured['passes']} passes a side", flush=True)
-    rendering = bare(args.scene, resolution, args.spp, measured["passes"])
-    other = measured["wall_s"] - rendering
+    found = bare(args.scene, resolution, args.spp, measured["passes"])
+    rendering, wall = found["render_s"], measured["wall_s"]
+    other = wall - rendering
     own = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"{args.scene} at {resolution[0]}x{resolution[1]}, {args.spp} spp a pass, {measured['passes']} passes a "
           f"side, {measured['looks']} look{'s' if measured['looks'] != 1 else ''}")  # fmt: skip
-    print(f"  check wall {measured['wall_s']:.1f} s; bare rendering of the same passes {rendering:.1f} s")
-    print(f"  everything else {other:.1f} s = {100 * other / measured['wall_s']:.1f} % of the wall time")
+    print(f"  check wall {wall:.1f} s; bare rendering of the same passes {rendering:.1f} s")
+    print(f"  everything else {other:.1f} s = {100 * other / wall:.1f} % of the wall time")
+    items = {"start-up of a render process": found["startup_s"], "EXR write and read of a side's passes":
+             found["exr_s"], "accumulation of a side's passes": parts["accumulate_s"] * measured["passes"],
+             "the looks": parts["looks_s"], "the report (after the last look)": measured["report_s"]}  # fmt: skip
+    items["waiting for the slower side, and the rest"] = other - sum(items.values())
+    for name, seconds in items.items():
+        print(f"    {name}: {seconds:.1f} s = {100 * seconds / wall:.1f} %")
     print(
         f"  peak memory: the largest process of the check (itself or a render process) "
         f"{measured['largest_process_mib']:.0f} MiB; this one {own:.0f} MiB"

@@ -27,10 +27,12 @@ Why an early design beside it: a t with few degrees of freedom pays for a small 
 Pocock over a 512-pass budget gives the look at 2 passes under 1 % of the level. So `EARLY_SHARE` of each `biased`
 level has a design of its own that ends at `EARLY_PASSES` passes a side (Pocock over its information fractions
 scaled by max_passes / EARLY_PASSES: the correlation of the looks is unchanged), the rest is spent over the whole
-budget; a hypothesis is rejected when it crosses either boundary, so by the union bound its level is kept. The
-look at 2 passes then has 21x the level, the last looks half: simulated on the pools of `benchmarks.power`,
-the passes to `biased` fell by up to 28 % where a decision takes under 16 passes and rose by at most one look
-(15 %) where it takes 100.
+budget; a hypothesis is rejected when it crosses either boundary, so by the union bound its level is kept. With a
+512-pass budget the look at 2 passes then has 16x the level (the critical |t| of one degree of freedom falls as
+much), the last looks half of it (about 0.1 higher in z at the levels used). Simulated on the pools of
+`benchmarks.power` (17 case-test pairs, 200 runs each): the median passes to `biased` fell in 10 (by up to 22 %:
+clamp unpaired 9 -> 7 passes, walls unpaired 5 -> 4, glossy paired 18 -> 15), stayed in 5, and rose by one look
+in the 2 that take 29 and 170 passes (to 34 and 196).
 
 A budget can grow after its last look (an `inconclusive` check resumed with more passes): the plan keeps
 `EXTENSION_RESERVE` of each level for that from the start (`sequential.boundaries`' reserve), and the looks past
