@@ -141,6 +141,7 @@ def render(f: dict) -> str:
     goals = goal_lines(f)
     if goals:
         parts += [GOALS] + goals
+    parts.append(STUDIES)
     parts.append(sizes(f))
     return "\n".join(parts) + "\n"
 
@@ -166,6 +167,25 @@ trials sits in every CSV row and every rate has a 95 % Wilson interval.
 
 GOALS = """
 ## The goals of issue 11, measured
+"""
+
+STUDIES = """
+## Studies beside the charts
+
+Each is its own command, run from the repository root on the same cached pools; its files sit beside this README.
+
+- `python -m benchmarks.power` (power.csv, power_aa.csv, power.png): passes a side to `biased` of `check` at its
+  defaults against the best fixed design in hindsight and a matched-filter oracle told the bias pattern, with and
+  without the early design (half of each `biased` level spent by 16 passes a side), on chart 5's cases and a
+  rendered glass caustic and fog volume; and the A/A pairs of chart 6 under both designs. Charts 5, 6 and 8 above
+  were last run before the early design existed: power.csv holds chart 5's comparison for the current one.
+  Findings: [docs/findings/power.md](../findings/power.md).
+- `python -m benchmarks.moderated` (moderated.csv): moderated variances (limma-trend empirical Bayes across tiles)
+  against `check`'s t-tests at 2–8 passes a side: power on the bias cases, `biased` on the A/A pairs.
+- `python -m benchmarks.sparse` (sparse.csv, sparse.png): changes that alter a few light paths, paired alone
+  against the default and Welch's test
+  ([docs/findings/sparse_paired_differences.md](../findings/sparse_paired_differences.md)).
+- `python -m benchmarks.production`: a 1920×1080 `check`, its wall time split into rendering and everything else.
 """
 
 

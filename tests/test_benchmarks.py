@@ -57,8 +57,9 @@ def test_the_production_benchmark_splits_the_wall_time():
 
 
 @pytest.mark.slow
-def test_the_sparse_differences_study_writes_its_table_and_chart(tmp_path):
-    """The quick form (tiny pools, few trials): every case, size and method has a row, and the chart is written."""
+def test_the_sparse_power_and_moderated_studies_write_their_tables(tmp_path):
+    """The quick forms (tiny pools, few trials; the power and moderated studies on the sparse study's pools): every
+    case, size and method has a row, and the charts are written."""
     run = subprocess.run([sys.executable, "-m", "benchmarks.sparse", "--quick", "--out", str(tmp_path), "--cache",
                           str(tmp_path / "cache")], cwd=REPO, capture_output=True, text=True, timeout=600)  # fmt: skip
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
@@ -70,3 +71,18 @@ def test_the_sparse_differences_study_writes_its_table_and_chart(tmp_path):
     assert len(rows) == len(sparse.CASES) * len(sparse.QUICK["passes"]) * len(sparse.METHODS)
     assert all(0 <= int(r["biased"]) + int(r["inconclusive"]) <= int(r["trials"]) for r in rows)
     assert (tmp_path / "sparse.png").stat().st_size > 10_000
+
+    for study in ("power", "moderated"):
+        run = subprocess.run([sys.executable, "-m", f"benchmarks.{study}", "--quick", "--out", str(tmp_path),
+                              "--cache", str(tmp_path / "cache")], cwd=REPO, capture_output=True, text=True,
+                             timeout=600)  # fmt: skip
+        assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+        assert "pool " not in run.stdout + run.stderr  # the sparse study's pools, none rendered again
+    power = list(csv.DictReader(open(tmp_path / "power.csv")))
+    expected = [(case[0], test) for case in sparse.CASES[:2] for test in ("paired", "unpaired")]
+    assert [(r["case"], r["test"]) for r in power] == expected
+    assert all(int(r["check_runs"]) == int(r["previous_runs"]) == 4 for r in power)
+    assert (tmp_path / "power.png").stat().st_size > 10_000
+    moderated = list(csv.DictReader(open(tmp_path / "moderated.csv")))
+    assert len(moderated) == 2 * 3 * 2  # per sparse case: bias paired and unpaired, A/A unpaired; n = 2 and 4
+    assert all(0 <= float(r["t_biased"]) <= 1 and 0 <= float(r["moderated_biased"]) <= 1 for r in moderated)
