@@ -14,8 +14,11 @@ Everything else is then itemised from measurements of its parts in the same run:
 (launch to its first render, measured by the bare processes, which also save and read each pass's EXR as a pass
 does, timed apart from the render), the accumulation of a pass into the statistics and a look (timed here on a
 pass of that size and on the check's final statistics), and the report (the check's last look to its exit, from
-its progress events). The two sides render in parallel, so a side's parts count once; what is left is waiting:
-a look needs both sides' chunk, and the faster side idles until the slower is done.
+its progress events), and a side's statistics file saved after each chunk and read for each look. The two sides
+render in parallel, so a side's parts count once. What is left is waiting (a look needs both sides' chunk) and
+the run-to-run noise of the render times between the check and the bare renders, which on a shared machine is
+several percent either way (-3.6 % and +6.1 % for "everything else" in two runs): the measured parts are the
+figure to read.
 """
 
 from __future__ import annotations
@@ -91,11 +94,17 @@ def in_process(out: Path, resolution: tuple[int, int], looks: int) -> dict:
     for seed in range(3):
         stats.add_pass(image, seed)
     accumulate = (time.perf_counter() - start) / 3
+    start = time.perf_counter()
     ref, test = wc.load_stats(out / "reference.npz"), wc.load_stats(out / "test.npz")
+    load = time.perf_counter() - start
+    start = time.perf_counter()
+    wc.save_stats(out / "again.npz", ref)
+    save = time.perf_counter() - start
     plan = wc.SequentialPlan(max_passes=ref.n, tolerance=None)
     start = time.perf_counter()
     wc.sequential_look(ref, test, plan, [1.0])
-    return {"accumulate_s": accumulate, "looks_s": looks * (time.perf_counter() - start)}
+    return {"accumulate_s": accumulate, "looks_s": looks * (time.perf_counter() - start),
+            "files_s": looks * (save + load)}  # fmt: skip
 
 
 def check(scene: str, resolution: tuple[int, int], spp: int, passes: int, out: Path) -> dict:
@@ -143,10 +152,15 @@ def main(argv: list[str] | None = None) -> int:
     print(f"  everything else {other:.1f} s = {100 * other / wall:.1f} % of the wall time")
     items = {"start-up of a render process": found["startup_s"], "EXR write and read of a side's passes":
              found["exr_s"], "accumulation of a side's passes": parts["accumulate_s"] * measured["passes"],
+             "a side's statistics file saved after each chunk and read for each look": parts["files_s"],
              "the looks": parts["looks_s"], "the report (after the last look)": measured["report_s"]}  # fmt: skip
-    items["waiting for the slower side, and the rest"] = other - sum(items.values())
     for name, seconds in items.items():
         print(f"    {name}: {seconds:.1f} s = {100 * seconds / wall:.1f} %")
+    measured_parts = sum(items.values())
+    print(
+        f"    these together: {measured_parts:.1f} s = {100 * measured_parts / wall:.1f} %; the rest, "
+        f"{other - measured_parts:.1f} s, is waiting for the slower side and the render times' run-to-run noise"
+    )
     print(
         f"  peak memory: the largest process of the check (itself or a render process) "
         f"{measured['largest_process_mib']:.0f} MiB; this one {own:.0f} MiB"

@@ -52,8 +52,8 @@ def test_the_production_benchmark_splits_the_wall_time():
     lines = lines[2:]  # after the progress lines
     assert lines[0] == "textured at 64x36, 1 spp a pass, 2 passes a side, 1 look", lines
     assert lines[2].startswith("  everything else ") and lines[2].endswith(" % of the wall time")
-    assert lines[3].startswith("    start-up of a render process: ") and lines[8].startswith("    waiting for ")
-    assert "peak memory: the largest process of the check" in lines[9]
+    assert lines[3].startswith("    start-up of a render process: ") and lines[9].startswith("    these together: ")
+    assert "peak memory: the largest process of the check" in lines[10]
 
 
 @pytest.mark.slow
