@@ -468,8 +468,9 @@ DEFAULT_LAYOUT_SCRIPT = (
                 raise RuntimeError(state.last_error or "no live map within 80 s")
             yield 0.2
         if state.running():
+            status = state.session.status_text()  # now: the next look may decide within the wait for the fit
             yield 1.0
-            report["running"] = editor(window) | {"status": state.session.status_text(), "windows": len(wm.windows)}
+            report["running"] = editor(window) | {"status": status, "windows": len(wm.windows)}
             shot(SHOT_RUNNING, window)
         while state.running():
             if time.monotonic() - started > 80:
