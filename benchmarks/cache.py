@@ -4,6 +4,7 @@ computes afresh and an unchanged one is read back.
 
 from __future__ import annotations
 
+import argparse
 import functools
 import hashlib
 import importlib
@@ -15,6 +16,18 @@ from typing import Any
 
 DEFAULT_DIR = Path(__file__).resolve().parent / "cache"
 REPO = Path(__file__).resolve().parent.parent
+
+
+def study_arguments(module: str, doc: str, quick: str, argv: list[str] | None) -> argparse.Namespace:
+    """The options every study beside the charts takes (``python -m benchmarks.<module>``): ``--quick`` (`quick`
+    says what it runs), ``--out`` (default docs/benchmarks) and ``--cache`` (its pools, default this cache)."""
+    parser = argparse.ArgumentParser(prog=f"python -m benchmarks.{module}", description=doc.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help=quick)
+    parser.add_argument("--out", type=Path, default=REPO / "docs" / "benchmarks", help="output folder")
+    parser.add_argument("--cache", type=Path, default=DEFAULT_DIR, help="pool cache folder")
+    args = parser.parse_args(argv)
+    args.out.mkdir(parents=True, exist_ok=True)
+    return args
 
 
 def digest(*parts: Any) -> str:

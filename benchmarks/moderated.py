@@ -22,15 +22,14 @@ Rows: per pair (the bias cases of chart 5 and the A/A pairs of chart 6), test an
 
 from __future__ import annotations
 
-import argparse
-import csv
 from pathlib import Path
 
 import numpy as np
 from scipy import optimize, special, stats
 
 from . import aa, plan, sparse
-from .cache import DEFAULT_DIR, REPO
+from .cache import study_arguments
+from .plotting import write_csv
 from .pools import PoolSpec, load_or_render, say
 from .trials import ALPHA, BASE_TILE, draw_paired, draw_unpaired
 
@@ -133,17 +132,9 @@ def measure(budget: dict, cache: Path) -> list[dict]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m benchmarks.moderated", description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="the quick pools of benchmarks.sparse, few trials")
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "benchmarks", help="output folder")
-    parser.add_argument("--cache", type=Path, default=DEFAULT_DIR, help="pool cache folder")
-    args = parser.parse_args(argv)
+    args = study_arguments("moderated", __doc__, "the quick pools of benchmarks.sparse, few trials", argv)
     rows = measure(QUICK if args.quick else FULL, args.cache)
-    args.out.mkdir(parents=True, exist_ok=True)
-    with open(args.out / "moderated.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+    write_csv(args.out / "moderated.csv", rows)
     say(f"wrote {args.out / 'moderated.csv'}")
     return 0
 

@@ -26,8 +26,6 @@ steps of 10 %.
 
 from __future__ import annotations
 
-import argparse
-import csv
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +34,8 @@ from scipy import stats
 import welch_core as wc
 
 from . import aa, checks, plan, sparse
-from .cache import DEFAULT_DIR, REPO
+from .cache import study_arguments
+from .plotting import write_csv
 from .pools import PoolSpec, load_or_render, say
 from .trials import ALPHA, compare_verdicts, draw_paired, draw_unpaired
 
@@ -235,25 +234,13 @@ def chart(rows: list[dict], path: Path) -> None:
     save(fig, path)
 
 
-def write_csv(path: Path, rows: list[dict]) -> None:
-    with open(path, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(dict.fromkeys(k for r in rows for k in r)))
-        writer.writeheader()
-        writer.writerows(rows)
-
-
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m benchmarks.power", description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="the quick pools of benchmarks.sparse, few runs")
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "benchmarks", help="output folder")
-    parser.add_argument("--cache", type=Path, default=DEFAULT_DIR, help="pool cache folder")
-    args = parser.parse_args(argv)
+    args = study_arguments("power", __doc__, "the quick pools of benchmarks.sparse, few runs", argv)
     budget = QUICK if args.quick else FULL
     rows = []
     for case in cases(budget, args.cache):
         say(f"power: {case['label']}")
         rows += case_rows(case, budget)
-    args.out.mkdir(parents=True, exist_ok=True)
     write_csv(args.out / "power.csv", rows)
     chart(rows, args.out / "power.png")
     aa_found = aa_rows(budget, args.cache)

@@ -16,9 +16,7 @@ identical.
 
 from __future__ import annotations
 
-import argparse
 import contextlib
-import csv
 import dataclasses
 from pathlib import Path
 
@@ -28,7 +26,8 @@ import welch_core as wc
 from welch_core import comparison
 from welch_core.ttest import TTestResult, paired_from_stats
 
-from .cache import DEFAULT_DIR, REPO
+from .cache import study_arguments
+from .plotting import write_csv
 from .pools import PoolSpec, load_or_render, say
 
 CASES = (
@@ -135,17 +134,9 @@ def chart(rows: list[dict], path: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m benchmarks.sparse", description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="small pools and few trials (checks the pipeline)")
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "benchmarks", help="output folder")
-    parser.add_argument("--cache", type=Path, default=DEFAULT_DIR, help="pool cache folder")
-    args = parser.parse_args(argv)
+    args = study_arguments("sparse", __doc__, "small pools and few trials (checks the pipeline)", argv)
     rows = measure(QUICK if args.quick else FULL, args.cache)
-    args.out.mkdir(parents=True, exist_ok=True)
-    with open(args.out / "sparse.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+    write_csv(args.out / "sparse.csv", rows)
     chart(rows, args.out / "sparse.png")
     say(f"wrote {args.out / 'sparse.csv'} and {args.out / 'sparse.png'}")
     return 0
