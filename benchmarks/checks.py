@@ -46,6 +46,16 @@ def one_run(ref, test, ref_order, test_order, plan: wc.SequentialPlan, tile: int
             "uncovered": look.uncovered, "looks": len(fractions)}  # fmt: skip
 
 
+def run_many(ref, test, paired: bool, runs: int, plan: wc.SequentialPlan, rng, tile: int = BASE_TILE) -> list[dict]:
+    """`runs` simulated checks of `plan`, each in its own random order of the pool's seeds (see `one_run`)."""
+    out = []
+    for _ in range(runs):
+        perm = rng.permutation(ref.n)
+        ref_order, test_order = (perm, perm) if paired else (perm[: ref.n // 2], perm[ref.n // 2 :])
+        out.append(one_run(ref, test, ref_order, test_order, plan, tile))
+    return out
+
+
 def simulate(
     ref,
     test,
@@ -66,12 +76,7 @@ def simulate(
     def compute():
         rng = np.random.default_rng(int(key[:8], 16))
         plan = wc.SequentialPlan(max_passes=max_passes, alpha=ALPHA, tolerance=tolerance)
-        out = []
-        for _ in range(runs):
-            perm = rng.permutation(ref.n)
-            ref_order, test_order = (perm, perm) if paired else (perm[: ref.n // 2], perm[ref.n // 2 :])
-            out.append(one_run(ref, test, ref_order, test_order, plan, tile))
-        return out
+        return run_many(ref, test, paired, runs, plan, rng, tile)
 
     key = digest("check", ref.spec.key, test.spec.key, paired, runs, max_passes, tolerance, tile, df,
                  welch_digest(), CHECKS_VERSION)  # fmt: skip

@@ -132,18 +132,7 @@ def check_runs(ref, test, paired: bool, runs: int, early_share: float, seed: int
     """`runs` simulated checks at the defaults, with the early design's share `early_share`."""
     max_passes = checks.budget(ref, paired)
     design = wc.SequentialPlan(max_passes=max_passes, alpha=ALPHA, tolerance=checks.TOLERANCE, early_share=early_share)
-    rng = np.random.default_rng(seed)
-    out = []
-    for _ in range(runs):
-        perm = rng.permutation(ref.n)
-        ref_order, test_order = (perm, perm) if paired else (perm[: ref.n // 2], perm[ref.n // 2 :])
-        out.append(checks.one_run(ref, test, ref_order, test_order, design))
-    return out
-
-
-def _quantile(values: list[float], q: float) -> float | None:
-    v = float(np.quantile(np.asarray(values, dtype=float), q, method="higher")) if values else np.inf
-    return v if np.isfinite(v) else None
+    return checks.run_many(ref, test, paired, runs, design, np.random.default_rng(seed))
 
 
 def _ratio(a, b) -> float | None:
@@ -163,7 +152,7 @@ def case_rows(case: dict, budget: dict) -> list[dict]:
         for key, share in DESIGNS:
             runs = check_runs(ref, test, paired, budget["runs"], share, seed)
             to_biased = [r["passes"] if r["verdict"] == "biased" else np.inf for r in runs]
-            median, p80 = _quantile(to_biased, 0.5), _quantile(to_biased, 0.8)
+            median, p80 = checks.percentile(to_biased, 0.5), checks.percentile(to_biased, 0.8)
             row |= {f"{key}_runs": len(runs), f"{key}_biased": sum(r["verdict"] == "biased" for r in runs),
                     f"{key}_median": median, f"{key}_p80": p80}  # fmt: skip
             for q, value in (("median", median), ("p80", p80)):
@@ -188,7 +177,7 @@ def aa_rows(budget: dict, cache: Path) -> list[dict]:
             runs = check_runs(ref, test, pair["paired"], budget["aa_runs"], share, seed=7)
             eq = [r["passes"] for r in runs if r["verdict"] == "equivalent"]
             row |= {f"{key}_runs": len(runs), f"{key}_equivalent": len(eq),
-                    f"{key}_equivalent_median": _quantile(eq, 0.5),
+                    f"{key}_equivalent_median": checks.percentile(eq, 0.5),
                     f"{key}_biased": sum(r["verdict"] == "biased" for r in runs)}  # fmt: skip
         rows.append(row)
         say(f"  A/A {pair['name']}: equivalent {row['check_equivalent']}/{row['check_runs']} (median "
