@@ -7,7 +7,8 @@ Run from the repository root::
     python -m benchmarks.speed compare    # some: compare, passes, reseed, report, lobes
 
 compare  ``python -m batch compare`` as a whole process (statistics files of 32 passes a side, 32x32 tiles, with
-         their pixel sums) against ``python -c "import numpy, scipy.special"``, at 1024x576 and 3840x2160;
+         their pixel sums) against ``python -c "import numpy, scipy.special"``, at 1024x576 and 3840x2160, and
+         at 1024x576 with 256 v 4 passes (the permutation test's cost, unbiased and biased);
          and the statistics alone (`compare` at the stored tile size) against scipy's ``ttest_ind_from_stats``.
          Goals: <= 2.5x and <= 1.2x.
 passes   A pass through the pipeline (`PassRenderer` + `render_passes`: render, save and read the EXR, tile sums,
@@ -52,11 +53,17 @@ def line(name: str, value: float, baseline: float, goal: float | None, unit: str
     print(f"  {name:<58} {value:8.3f} {unit} / {baseline:8.3f} {unit} = {ratio:5.2f}x{verdict}")
 
 
-def synthetic_run(height: int, width: int, first_seed: int, rng: np.random.Generator) -> wc.TileStats:
+def synthetic_run(height: int, width: int, first_seed: int, rng: np.random.Generator, passes: int = PASSES,
+                  shift: float = 0.0) -> wc.TileStats:  # fmt: skip
     ty, tx = height // TILE, width // TILE
-    sums = rng.normal(1000.0, 10.0, (PASSES, ty, tx, 3))
-    pixels = rng.uniform(0.0, 2.0, (height, width, 3)).astype(np.float32) * PASSES
-    return wc.TileStats.from_sums(sums, range(first_seed, first_seed + PASSES), height, width, TILE, pixel_sum=pixels)
+    sums = rng.normal(1000.0 + shift, 10.0, (passes, ty, tx, 3))
+    pixels = rng.uniform(0.0, 2.0, (height, width, 3)).astype(np.float32) * passes
+    return wc.TileStats.from_sums(sums, range(first_seed, first_seed + passes), height, width, TILE, pixel_sum=pixels)
+
+
+#: Unequal pass counts (a blessed reference against a short test run): `biased` needs the permutation test too;
+#: an unbiased pair stops drawing resamples early, a biased one draws them all (999 at alpha 0.01).
+UNEQUAL = {"1024x576, 256 v 4, unbiased": 0.0, "1024x576, 256 v 4, biased": 30.0}
 
 
 def interleaved(commands: dict[str, list[str]], repeats: int) -> dict[str, float]:
@@ -81,8 +88,15 @@ def bench_compare(repeats: int = 7) -> None:
                 wc.save_stats(f"{tmp}/{label}_{side}.npz", synthetic_run(height, width, first, rng))
             commands[label] = [PYTHON, "-m", "batch", "compare", f"{tmp}/{label}_a.npz", f"{tmp}/{label}_b.npz",
                                "--out", f"{tmp}/report_{label}"]  # fmt: skip
+        height, width = SIZES["1024x576"]
+        for label, shift in UNEQUAL.items():
+            name = label.replace(", ", "_").replace(" ", "")
+            wc.save_stats(f"{tmp}/{name}_a.npz", synthetic_run(height, width, 0, rng, 256))
+            wc.save_stats(f"{tmp}/{name}_b.npz", synthetic_run(height, width, 1000, rng, 4, shift))
+            commands[label] = [PYTHON, "-m", "batch", "compare", f"{tmp}/{name}_a.npz", f"{tmp}/{name}_b.npz",
+                               "--out", f"{tmp}/report_{name}"]  # fmt: skip
         medians = interleaved(commands, repeats)
-    for label in SIZES:
+    for label in [*SIZES, *UNEQUAL]:
         line(f"batch compare at {label}", medians[label], medians["baseline"], 2.5)
 
     from scipy import stats

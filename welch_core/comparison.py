@@ -24,6 +24,7 @@ from .diagnostics import MIN_PASSES_FOR_NORMALITY, normality
 from .effect import Effect, effect_sizes
 from .errors import SeedOverlapError, WelchInputError, check_alpha
 from .multitest import GlobalTest, combine_channels, global_test
+from .permutation import needs_resampling, permutation_max_t
 from .tiles import TileStats
 from .ttest import Reason, TTestResult, paired_from_stats, welch_from_stats
 from .verdict import Verdict
@@ -337,17 +338,26 @@ def compare(
     claim = check_claim_tile(equivalence_tile, scales, tolerance)
     count = len(scales)
     with np.errstate(invalid="ignore"):
-        significant = [s.global_test.adjusted * 2 * count <= alpha for s in scales]
-    scales = tuple(dataclasses.replace(s, significant=sig) for s, sig in zip(scales, significant, strict=True))
+        found = [(s.global_test.adjusted * 2 * count <= alpha)[..., None] & (s.reasons == Reason.VALID) for s in scales]
     p_values = [s.p_value for s in scales if np.isfinite(s.p_value)]
     p_value = min(1.0, count * min(p_values)) if p_values else float("nan")  # Bonferroni over the scales
+    resampling = None
+    if needs_resampling(kind, ref.n, test.n):
+        # Different pass counts: `biased` needs the permutation test too (an intersection of two rejections), and
+        # a tile-channel is significant where both families reject it.
+        resampling = permutation_max_t(runs, alpha)
+        with np.errstate(invalid="ignore"):
+            found = [sig & (adjusted <= alpha) for sig, adjusted in zip(found, resampling.adjusted, strict=True)]
+        p_value = max(p_value, resampling.p_value)
+    scales = tuple(dataclasses.replace(s, significant=sig.any(axis=-1)) for s, sig in zip(scales, found, strict=True))
     evidence = Evidence(
         design="fixed",
-        significant=[sig[..., None] & (s.reasons == Reason.VALID) for s, sig in zip(scales, significant, strict=True)],
+        significant=found,
         simultaneous=[alpha / (2 * count * s.pvalues.size) for s in scales],
         equivalence=2 * alpha,
         whole=alpha,
         p_value=p_value,
+        resampling=resampling,
     )
     whole = test_tiles(ref.whole(), test.whole(), kind, pvalue_method)
     outcome = decide(scales, tests, runs, evidence, alpha, tolerance, claim, identical, whole, uncovered)

@@ -36,6 +36,15 @@ out a change rarer than that; the threshold is the price of saying so at a state
 ``equivalent (bit-identical)``: every pass identical on both sides (a setting without effect in this scene, a
 no-op override), for at least `identical_passes(alpha)` passes.
 
+Sides of different pass counts (Welch's test): ``biased`` also needs the permutation max-T test of the same family
+to reject (`permutation`), an intersection of the two rejections, so its level is at most either's: alpha under
+normal tile sums by the t-tests, alpha under exchangeable passes (one distribution for both sides, as two unbiased
+renders of one setting are) whatever the shape of the tile sums and the pass counts. Welch's t alone is not
+calibrated there: with skewed tile sums (fireflies) the smaller side usually misses the bright passes and looks
+darker with a tiny variance. A tile-channel is significant where both families reject it. Where the permutation
+test cannot reach the level at all (too few passes: 2 v 8 have 45 distinct splits), the outcome is
+``inconclusive`` ("unreachable"), never ``no_evidence``: nothing could have been found.
+
 ``no_evidence`` (no tolerance asked for): nothing rejected; the minimum detectable bias says what could hide.
 ``inconclusive``: with a tolerance, neither claim holds at the budget (the claim scale is not bounded yet: the
 outcome says where and how many passes would bound it); or too much of the image is testable at no scale.
@@ -153,6 +162,8 @@ class Evidence:
     p_value: float | None = None
     final: bool = True  # the last look (a fixed design always is): undecided means inconclusive or no evidence
     family: str = "every tile-channel of every tile size"
+    #: the permutation test that `biased` between sides of different pass counts also needs (`permutation`)
+    resampling: Any = None
 
 
 @dataclass(frozen=True)
@@ -183,6 +194,8 @@ class Outcome:
     identical_needed: int  # identical passes that make identical sides `equivalent (bit-identical)`
     reason: str  # why the verdict, in a few words (machine-readable key)
     significant: np.ndarray = field(repr=False, compare=False, default=None)  # finest tiles outlined (_found_where)
+    #: the permutation test of the family, where the pass counts differ (`welch_core.permutation`); else None
+    resampling: Any = field(repr=False, compare=False, default=None)
 
     @property
     def claim(self) -> ScaleResult | None:
@@ -227,6 +240,7 @@ class Outcome:
             "normality_checked": self.normality_checked,
             "min_detectable": self.min_detectable,
             "reason": self.reason,
+            "resampling": None if self.resampling is None else self.resampling.to_json(),
         }
 
 
@@ -283,6 +297,8 @@ def decide(scales, tests, runs, evidence: Evidence, alpha: float, tolerance: flo
         verdict, reason, decided = Verdict.INCONCLUSIVE, "undecided", False
     elif not any(s.n_valid for s in scales):
         verdict, reason = Verdict.INCONCLUSIVE, "untestable"
+    elif evidence.resampling is not None and evidence.resampling.limited:
+        verdict, reason = Verdict.INCONCLUSIVE, "unreachable"
     elif too_untested or not testable:
         verdict, reason = Verdict.INCONCLUSIVE, "too_untested"
     elif tolerance is not None:
@@ -315,6 +331,7 @@ def decide(scales, tests, runs, evidence: Evidence, alpha: float, tolerance: flo
         identical_needed=needed_identical,
         reason=reason,
         significant=significant_finest,
+        resampling=evidence.resampling,
     )
 
 

@@ -55,6 +55,7 @@ import numpy as np
 from .comparison import TileTest, assess_scales, check_claim_tile, choose_test, identical_passes_of, test_tiles
 from .decision import Evidence, Outcome, decide
 from .errors import WelchInputError, check_alpha, check_int
+from .permutation import needs_resampling, permutation_max_t
 from .sequential import SPENDING, boundaries, nominal_levels
 from .tiles import TileStats
 from .ttest import Reason, pvalue_exact
@@ -230,6 +231,29 @@ def biased_levels(fractions, shares, plan: SequentialPlan) -> np.ndarray:
     return np.maximum(main, _levels(ended, tuple((shares * plan.early).tolist()), plan.spending, 0.0))
 
 
+def spent(fraction: float, plan: SequentialPlan) -> float:
+    """The share of alpha the `biased` claim has spent by information `fraction`, over the whole family: the main
+    design's (1 - early share, keeping `reserve` for a grown budget) and the early design's (the early share, by
+    EARLY_PASSES), as `biased_levels` spends them per tile-channel."""
+    spending = SPENDING[plan.spending]
+    if fraction <= 1.0:
+        main = (1.0 - plan.reserve) * float(spending(fraction, plan.alpha))
+    else:
+        main = plan.alpha * (1.0 - plan.reserve / fraction)
+    early = float(spending(min(fraction * plan.max_passes / EARLY_PASSES, 1.0), plan.alpha)) if plan.early else 0.0
+    return (1.0 - plan.early) * main + plan.early * early
+
+
+def resampling_level(fractions, plan: SequentialPlan) -> float:
+    """The level of the permutation test at the last of the looks at `fractions`: what the spending adds at this
+    look. A crossing at look k counts only where the permutation test rejects at its level a_k, and the a_k sum
+    to at most alpha over the looks, so by the union bound over looks an unbiased pair is called `biased` with
+    probability at most alpha whatever the pass counts (and at most what the t-tests' boundaries allow)."""
+    fractions = [float(f) for f in fractions]
+    before = spent(fractions[-2], plan) if len(fractions) > 1 else 0.0
+    return max(spent(fractions[-1], plan) - before, 0.0)
+
+
 def sequential_look(
     ref: TileStats, test: TileStats, plan: SequentialPlan, fractions, final: bool | None = None
 ) -> Look:
@@ -278,6 +302,16 @@ def sequential_look(
                 ratio = np.log(np.nanmin(p)) / math.log(level)  # >= 1: crossed
             if ratio > best[0]:
                 best = (float(ratio), float(np.nanmin(p)), float(level))
+    resampling = None
+    if needs_resampling(kind, ref.n, test.n) and crossed:
+        # Different pass counts (a fixed reference): a crossing counts where the permutation test, at this look's
+        # increment of the spending, rejects the tile-channel too (see `resampling_level`).
+        level = resampling_level(fractions, plan)
+        resampling = permutation_max_t(runs, level) if level > 0 else None  # 0: this look spends nothing
+        adjusted = resampling.adjusted if resampling is not None else [np.ones(s.shape) for s in significant]
+        with np.errstate(invalid="ignore"):
+            significant = [s & (a <= level) for s, a in zip(significant, adjusted, strict=True)]
+        crossed = int(sum(np.sum(s) for s in significant))
     evidence = Evidence(
         design="sequential",
         significant=significant,
@@ -286,6 +320,7 @@ def sequential_look(
         whole=float(whole_level),
         final=bool(fractions[-1] >= 1.0) if final is None else final,
         family="every tile-channel of every tile size, at every look",
+        resampling=resampling,
     )
     outcome = decide(
         scales, tests, runs, evidence, plan.alpha, plan.tolerance, _claim(plan, scales), identical, whole, uncovered

@@ -219,6 +219,7 @@ def notes(c: wc.Comparison, outcome: wc.Outcome | None = None) -> list[str]:
         )
     elif untrusted and len(c.scales) > 1:
         out.append("their regions are tested at a larger tile size")
+    out += words.resampling_notes(outcome.to_json())
     short = min(outcome.n_ref, outcome.n_test) < outcome.identical_needed
     if c.reason_counts.get("zero_variance") and not outcome.identical and short:
         out.append(

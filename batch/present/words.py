@@ -114,6 +114,12 @@ def sentence(outcome: dict[str, Any]) -> str:
         parts.append(f"bias ruled out per tile size: {ruled_out_list(outcome)}")
     elif reason == "undecided":
         parts.append(f"undecided after {n} passes a side")
+    elif reason == "unreachable":
+        test = outcome["resampling"]
+        parts.append(
+            f"{text}: with {outcome['n_ref']} v {outcome['n_test']} passes no bias can be shown (the permutation test "
+            f"that sides of different pass counts need can't give a p-value below {fmt.p_value(test['smallest'])})"
+        )
     elif reason == "untestable":
         parts.append(f"{text}: no tile can be tested (too few passes, constant images or non-finite values)")
     elif reason == "too_untested":
@@ -134,6 +140,25 @@ def sentence(outcome: dict[str, Any]) -> str:
     if whole:
         parts.append(whole)
     return "; ".join(parts)
+
+
+def resampling_notes(outcome: dict[str, Any]) -> list[str]:
+    """What the permutation test that `biased` needs between sides of different pass counts said, when it ran."""
+    test = outcome.get("resampling")
+    if test is None:
+        return []
+    sides = f"the sides differ in passes ({outcome['n_ref']} v {outcome['n_test']})"
+    if test["limited"]:
+        return [
+            f"{sides}: `biased` also needs a permutation test of the whole family, whose smallest p-value with "
+            f"these passes is {fmt.p_value(test['smallest'])}, above the {fmt.p_value(test['level'])} it must reach: "
+            "these passes cannot show a bias (render more passes on the smaller side)"
+        ]
+    return [
+        f"{sides}: `biased` also needs a permutation test of the whole family (Welch's t alone is not calibrated "
+        f"there when tile sums are skewed): p {fmt.p_value(test['p_value'])} against "
+        f"{fmt.p_value(test['level'])}, {test['resamples']} resamples"
+    ]
 
 
 def _early(check: dict[str, Any] | None) -> str:
@@ -158,6 +183,11 @@ def method(outcome: dict[str, Any], pvalue_method: str = "exact", check: dict[st
             f"{name} per tile and channel (p: {pvalue_method}) at tile sizes {sizes}; channels combined by "
             "Bonferroni; the tiles of a size by Holm and a one-sided Kolmogorov-Smirnov test of uniformity, "
             "Bonferroni-combined; the sizes by Bonferroni"
+        )
+    if outcome.get("resampling") is not None:
+        text += (
+            "; the sides' pass counts differ, so `biased` also needs a permutation max-T test of every tile-channel "
+            "of every size (passes reassigned between the sides)"
         )
     if outcome["tolerance"] is not None:
         tile = outcome["claim_tile"]
@@ -208,6 +238,11 @@ def next_step(outcome: dict[str, Any], check: bool = False) -> str:
         return (
             "More passes alone may not bound every tile (an estimate beyond the tolerance, or tiles whose samples "
             f"are not normal): look at the tiles not bounded, or give a coarser --equivalence-tile; or {more}."
+        )
+    if reason == "unreachable":
+        return (
+            "Too few passes on the smaller side for any test that holds with skewed tile sums: render more passes "
+            f"there, then compare again (or {more})."
         )
     if reason == "untestable":
         return f"No tile could be tested (too few passes, or constant images): {more}."
