@@ -123,7 +123,8 @@ def unequal_trials(seed: int, trials: int, n_ref: int, n_test: int, alpha: float
 def test_biased_is_calibrated_at_unequal_pass_counts_with_skewed_tiles(n_ref, n_test):
     """400 unbiased pairs of skewed tile sums (4x4 tiles x 3 channels, `skewed_sums`) at alpha 0.05: `biased` in
     at most alpha of them (the 99.9 % binomial limit, 33). The t-tests alone called most of them `biased` (the
-    small side misses the bright passes: a low mean with a tiny variance). Measured: MEASURED."""
+    small side misses the bright passes: a low mean with a tiny variance). Measured: 4 v 256: 23 of 400, the
+    t-tests alone 272; 256 v 8: 14, alone 171; 16 v 256: 20, alone 102."""
     biased, t_alone = unequal_trials(20261210 + n_ref, 400, n_ref, n_test, 0.05)
     print(f"{n_ref} v {n_test}: biased in {biased} of 400, the t-tests alone {t_alone}")
     assert biased <= stats.binom.ppf(0.999, 400, 0.05), biased
@@ -134,7 +135,7 @@ def test_biased_is_calibrated_at_unequal_pass_counts_with_skewed_tiles(n_ref, n_
 def test_biased_is_calibrated_in_the_looks_of_a_suite_with_a_big_blessed_reference():
     """A suite's case: a reference of 256 passes of skewed tile sums, the test side looked at up to 64 passes with
     a fixed reference, 300 unbiased sequences at alpha 0.05: `biased` in at most alpha (the 99.9 % limit, 26).
-    Measured: MEASURED2."""
+    Measured: 6 of 300; the t boundaries alone (a look that needed the permutation test had crossed them) 36."""
     rng = np.random.default_rng(20261211)
     plan = SequentialPlan(max_passes=64, alpha=0.05, tolerance=None)
     schedule = look_schedule(64)

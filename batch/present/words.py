@@ -241,8 +241,8 @@ def next_step(outcome: dict[str, Any], check: bool = False) -> str:
         )
     if reason == "unreachable":
         return (
-            "Too few passes on the smaller side for any test that holds with skewed tile sums: render more passes "
-            f"there, then compare again (or {more})."
+            "Too few passes on the smaller side for a test that holds with skewed tile sums: render more passes there "
+            "(the same render command with --resume and more seeds), then compare again."
         )
     if reason == "untestable":
         return f"No tile could be tested (too few passes, or constant images): {more}."
