@@ -154,3 +154,12 @@ def test_biased_is_calibrated_in_the_looks_of_a_suite_with_a_big_blessed_referen
     print(f"biased in {biased} of 300; the t boundaries alone {t_alone}")
     assert biased <= stats.binom.ppf(0.999, 300, 0.05), biased
     assert t_alone > 2 * 0.05 * 300, t_alone
+
+
+def test_a_level_below_the_smallest_p_value_draws_nothing():
+    """A look's level can be below 1 / (1 + MAX_RESAMPLES): the test can't reach it, says so, and draws nothing."""
+    rng = np.random.default_rng(6)
+    ref, test = run(rng.normal(100, 1, (64, 2, 2, 3))), run(rng.normal(150, 1, (8, 2, 2, 3)), 100)
+    result = permutation_max_t(runs_of(ref, test), 1e-6)
+    assert result.limited and not result.rejects and result.resamples == 0
+    assert all(np.isnan(a).all() for a in result.adjusted)

@@ -117,7 +117,7 @@ def permutation_max_t(runs, level: float) -> Resampling:
     distinct = math.comb(total, n_test)
     smallest = max(1.0 / (planned + 1), 1.0 / distinct)
     empty = tuple(np.full(shape, np.nan) for shape in shapes)
-    if columns is None or n_ref < 2 or n_test < 2:
+    if columns is None or n_ref < 2 or n_test < 2 or smallest > level:  # nothing to test, or out of reach
         return Resampling(1.0, level, 0, smallest, empty)
     x, family = columns
     labels = np.zeros((1, total))
