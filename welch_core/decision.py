@@ -49,6 +49,15 @@ test cannot reach the level at all (too few passes: 2 v 8 have 45 distinct split
 ``inconclusive``: with a tolerance, neither claim holds at the budget (the claim scale is not bounded yet: the
 outcome says where and how many passes would bound it); or too much of the image is testable at no scale.
 
+Futility (`check`, with a tolerance): from `FUTILITY_PASSES` passes a side on, a look projects from the variances
+alone, not the differences, the passes a side that would bound every tile-channel of each scale if the two sides
+had the same mean (`ScaleResult.projected`); when the claim scale's projection exceeds `FUTILITY_MARGIN` times the
+budget (or no number of test passes can reach it: a fixed reference too noisy for the tolerance), the check
+stops ``inconclusive`` ("futile") and says which scales the budget can bound. A non-binding futility stop only
+ever turns a later verdict into ``inconclusive``: neither ``biased`` nor ``equivalent`` becomes more likely, so
+both error rates stay at most alpha; what it costs is the chance of a verdict the rest of the budget might have
+reached (measured in `benchmarks.futility`).
+
 References: R. L. Berger, "Multiparameter hypothesis testing and acceptance sampling", Technometrics 24(4),
 1982; C. Jennison and B. W. Turnbull, "Group Sequential Methods with Applications to Clinical Trials", 2000.
 """
@@ -85,6 +94,13 @@ MAX_UNTRUSTED_SHARE = 0.25
 #: Identical passes on both sides count as evidence of no difference once a change that alters this share of
 #: the passes (or more) would have shown in one of them at 1 - alpha: (1 - share)^n <= alpha.
 IDENTICAL_SHARE = 0.1
+
+#: Futility of `equivalent` (`check`): from this many passes a side, a check whose claim scale would need more
+#: than FUTILITY_MARGIN times its budget to be bounded, projected from the variances alone, stops `inconclusive`
+#: (and says which tile sizes the budget can bound). The margin absorbs the noise of the largest of many variance
+#: estimates at 16 passes (the largest of a few hundred chi-square(15) / 15 ratios is about 2.4).
+FUTILITY_PASSES = 16
+FUTILITY_MARGIN = 4.0
 
 #: Bounds on a relative difference beyond this say nothing a person can use (an early look's interval of a
 #: tile whose reference mean is nearly 0): shown as "not bounded".
@@ -138,6 +154,9 @@ class ScaleResult:
     bounded: int  # tiles bounded within the tolerance (all, when there is no tolerance and every tile is bounded)
     unbounded_box: tuple[int, int, int, int] | None  # x, y, width, height around the tiles not bounded
     passes_needed: int | None  # passes a side that would bound them at the current rate (None: can't tell)
+    #: passes a side that would bound every tile here if both sides had the same mean, from the variances alone
+    #: (None: no tolerance, nothing to project, or no number of test passes would: a fixed reference too noisy)
+    projected: int | None = None
 
     def to_json(self) -> dict[str, Any]:
         out = {k: getattr(self, k) for k in self.__dataclass_fields__}
@@ -162,6 +181,7 @@ class Evidence:
     p_value: float | None = None
     final: bool = True  # the last look (a fixed design always is): undecided means inconclusive or no evidence
     family: str = "every tile-channel of every tile size"
+    budget: int | None = None  # passes a side a check may render (None: a fixed design; no futility stop)
     #: the permutation test that `biased` between sides of different pass counts also needs (`permutation`)
     resampling: Any = None
 
@@ -196,6 +216,7 @@ class Outcome:
     significant: np.ndarray = field(repr=False, compare=False, default=None)  # finest tiles outlined (_found_where)
     #: the permutation test of the family, where the pass counts differ (`welch_core.permutation`); else None
     resampling: Any = field(repr=False, compare=False, default=None)
+    budget: int | None = None  # a check's passes a side (None: a fixed design)
 
     @property
     def claim(self) -> ScaleResult | None:
@@ -241,6 +262,7 @@ class Outcome:
             "min_detectable": self.min_detectable,
             "reason": self.reason,
             "resampling": None if self.resampling is None else self.resampling.to_json(),
+            "budget": self.budget,
         }
 
 
@@ -268,11 +290,12 @@ def decide(scales, tests, runs, evidence: Evidence, alpha: float, tolerance: flo
     ]
     whole_image = _whole_difference(whole, evidence.whole, alpha)
     results = tuple(
-        _scale_result(scale, sig, bound, tolerance, n, run[0], p, needed_identical)
-        for scale, sig, bound, run, p in zip(
-            scales, evidence.significant, bounds, runs, _scale_pvalues(scales, evidence), strict=True
+        _scale_result(scale, sig, bound, tolerance, n, run[0], p, needed_identical,
+                      _projected(scale, tested, evidence.equivalence, tolerance, needed_identical))
+        for scale, tested, sig, bound, run, p in zip(
+            scales, tests, evidence.significant, bounds, runs, _scale_pvalues(scales, evidence), strict=True
         )
-    )
+    )  # fmt: skip
     deterministic = sum(int((s.reasons == Reason.DETERMINISTIC_DIFFERENCE).sum()) for s in scales)
     crossed = any(bool(np.any(sig)) for sig in evidence.significant)
     relevant = ~(finest.reasons == Reason.ZERO_VARIANCE).all(axis=-1)
@@ -293,6 +316,8 @@ def decide(scales, tests, runs, evidence: Evidence, alpha: float, tolerance: flo
         verdict, reason, decided = Verdict.INCONCLUSIVE, "identical_too_few", evidence.final
     elif crossed or (evidence.p_value is not None and evidence.p_value <= alpha):
         verdict, reason = Verdict.BIASED, "significant" if crossed else "spread"
+    elif _futile(claim, evidence, tolerance, n):
+        verdict, reason = Verdict.INCONCLUSIVE, "futile"
     elif not evidence.final:
         verdict, reason, decided = Verdict.INCONCLUSIVE, "undecided", False
     elif not any(s.n_valid for s in scales):
@@ -332,6 +357,7 @@ def decide(scales, tests, runs, evidence: Evidence, alpha: float, tolerance: flo
         reason=reason,
         significant=significant_finest,
         resampling=evidence.resampling,
+        budget=evidence.budget,
     )
 
 
@@ -357,7 +383,47 @@ def _bounds(scale, tested, level: float, enough: bool):
     return np.where(equal, 0.0, bound), estimate, half
 
 
-def _scale_result(scale, significant, bounds, tolerance, n: int, run, p_value, identical_needed: int) -> ScaleResult:
+def _futile(claim: ScaleResult | None, evidence: Evidence, tolerance: float | None, n: int) -> bool:
+    """Whether a check stops for futility (see the module docstring): a look before the last, with a tolerance,
+    from FUTILITY_PASSES passes a side on, whose claim scale can't be bounded within FUTILITY_MARGIN x budget."""
+    if tolerance is None or evidence.budget is None or evidence.final or n < FUTILITY_PASSES or claim is None:
+        return False
+    if claim.bounded == claim.tiles:
+        return False
+    return claim.projected is None or claim.projected > FUTILITY_MARGIN * evidence.budget
+
+
+def _projected(scale, tested, level: float, tolerance: float | None, floor: int) -> int | None:
+    """Passes a side that would bound every tile-channel of the scale within the tolerance if both sides had the
+    same mean: the interval's half-width z SE / |mu_ref| shrinks to the tolerance. Only the variances enter (a stop
+    that read the differences would shape what it leaves). With equal pass counts (or paired) both sides grow; with
+    unequal ones the reference is kept (a suite's blessed reference) and only the test side grows, so a reference
+    too noisy for the tolerance makes it None. Untested tiles (no variance) are left out; zero variance needs none."""
+    if tolerance is None:
+        return None
+    from scipy import special  # here: this module is imported where scipy is not (a stock Blender)
+
+    valid = scale.reasons == Reason.VALID
+    if not valid.any():
+        return floor
+    result, n_ref, n_test = tested.result, scale.n_ref, scale.n_test
+    z = float(special.ndtri(1.0 - level / 2.0))
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        room = (tolerance * np.abs(tested.ref_mean) / z) ** 2  # the variance of the difference's estimate allowed
+        se2 = result.standard_error**2
+        if tested.kind == "paired" or n_ref == n_test:
+            need = n_test * se2 / room
+        else:
+            test_part = np.maximum(se2 - tested.ref_var, 0.0) * n_test
+            need = np.where(room > tested.ref_var, test_part / (room - tested.ref_var), np.inf)
+    need = need[valid & ~np.isnan(need)]
+    if need.size and not np.all(np.isfinite(need)):
+        return None
+    return max(floor, int(math.ceil(float(need.max())))) if need.size else floor
+
+
+def _scale_result(scale, significant, bounds, tolerance, n: int, run, p_value, identical_needed: int,
+                  projected: int | None = None) -> ScaleResult:  # fmt: skip
     bound, estimate, half = bounds
     per_tile = bound.max(axis=-1)
     worst = float(per_tile.max()) if per_tile.size else math.inf
@@ -380,6 +446,7 @@ def _scale_result(scale, significant, bounds, tolerance, n: int, run, p_value, i
         passes_needed=_passes_needed(scale, estimate, half, bound, tolerance, n, identical_needed)
         if unbounded.any()
         else None,
+        projected=projected,
     )
 
 

@@ -255,13 +255,16 @@ def resampling_level(fractions, plan: SequentialPlan) -> float:
 
 
 def sequential_look(
-    ref: TileStats, test: TileStats, plan: SequentialPlan, fractions, final: bool | None = None
-) -> Look:
+    ref: TileStats, test: TileStats, plan: SequentialPlan, fractions, final: bool | None = None,
+    budget: int | None = None,
+) -> Look:  # fmt: skip
     """The decision at the last of the looks at information `fractions` (every look so far, increasing).
 
     The boundaries of the earlier looks shape this one's (alpha spent before is not spent again), so the
     fractions of every look so far are needed; they are recomputed identically on resume. `final` says this is
-    the last look (default: its fraction is 1); a check stopped by its time budget passes True.
+    the last look (default: its fraction is 1); a check stopped by its time budget passes True. `budget` is the
+    passes a side the check may render (default the plan's; more once it was grown): the futility stop of
+    `equivalent` compares the passes each scale needs with it (`welch_core.decision`).
 
     Each tile-channel of each scale has the Bonferroni share alpha / (S m_s) of `biased`, spent over the looks by
     the early and the main design (`biased_levels`);
@@ -321,6 +324,7 @@ def sequential_look(
         final=bool(fractions[-1] >= 1.0) if final is None else final,
         family="every tile-channel of every tile size, at every look",
         resampling=resampling,
+        budget=plan.max_passes if budget is None else budget,
     )
     outcome = decide(
         scales, tests, runs, evidence, plan.alpha, plan.tolerance, _claim(plan, scales), identical, whole, uncovered

@@ -312,13 +312,17 @@ class Check:
         done = max([look["passes"] for look in self.looks] + [min(s.passes for s in self.rendered)])
         fractions = [look["fraction"] for look in self.looks]
         last = self.looks[-1] if self.looks else None
-        if last is not None and (last["verdict"] in DECIDED or (last["verdict"] is not None and done >= self.budget)):
-            # Decided already (a resumed check), or its budget spent and not grown: answer with that outcome; another
-            # look would be one more peek.
+        stopped = last is not None and last["verdict"] == "inconclusive" and last.get("budget") == self.budget
+        if last is not None and (
+            last["verdict"] in DECIDED or stopped or (last["verdict"] is not None and done >= self.budget)
+        ):
+            # Decided already (a resumed check; a futility stop too, unless the budget grew), or its budget spent and
+            # not grown: answer with that outcome; another look would be one more peek.
             ref, test = self._load()
             n = self.looks[-1]["passes"]
             ref, test = (ref if self.job.fixed_reference else self._at(ref, n)), self._at(test, n)
-            return wc.sequential_look(ref, test, self.plan, fractions, final=True), ref, test
+            final = last.get("reason") != "futile"  # a futility stop is made again at the look where it was made
+            return wc.sequential_look(ref, test, self.plan, fractions, final=final, budget=self.budget), ref, test
         if self.plan is None:
             yield from self._render_to(wc.looks.FIRST_LOOK)
             self._fix_budget()
@@ -333,7 +337,9 @@ class Check:
             ref, test = self._load()
             n = min(ref.n, test.n) if not self.job.fixed_reference else test.n
             fractions.append(self._fraction(n))
-            look = wc.sequential_look(ref, test, self.plan, fractions, final=index == len(schedule) - 1)
+            look = wc.sequential_look(
+                ref, test, self.plan, fractions, final=index == len(schedule) - 1, budget=self.budget
+            )
             self.looks.append(_look_record(look, self.render_seconds))
             self._save_state()
             bound = look.ruled_out if math.isfinite(look.ruled_out) else None
@@ -357,7 +363,7 @@ class Check:
         if not fractions:  # nothing looked at (resumed after the last look): the first look on what is there
             fractions = [self._fraction(min(ref.n, test.n))]
         # The budget is spent (or the time): the last look, as the final one.
-        return wc.sequential_look(ref, test, self.plan, fractions, final=True), ref, test
+        return wc.sequential_look(ref, test, self.plan, fractions, final=True, budget=self.budget), ref, test
 
     @staticmethod
     def _at(run: wc.TileStats, n: int) -> wc.TileStats:
@@ -401,6 +407,8 @@ def _look_record(look: wc.Look, seconds: float) -> dict:
         "whole_image": outcome.whole_image.to_json() if outcome.whole_image is not None else None,
         "uncovered": look.uncovered,
         "seconds": seconds,
+        "budget": outcome.budget,
+        "reason": outcome.reason,
     }
     return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in record.items()}
 

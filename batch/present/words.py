@@ -95,10 +95,29 @@ def sentence(outcome: dict[str, Any]) -> str:
         whole = None
     elif reason == "spread":
         parts.append(f"{text}: a difference spread over many tiles (too many small p-values)")
+    elif reason == "futile":
+        claim = claim_scale(outcome)
+        tile, need = claim["tile"], claim["projected"]
+        first = (
+            f"{text}: stopped early, every {tile}x{tile} tile within ±{_tolerance(outcome)} would take "
+            + (f"about {need} passes a side" if need is not None else "more passes than the reference has")
+            + f" (projected from the variances), beyond the budget of {outcome['budget']}"
+        )
+        parts.append(first)
+        reachable = reachable_scales(outcome)
+        if reachable:
+            parts.append("within the budget: " + ", ".join(f"{t}x{t} (about {p} passes)" for t, p in reachable))
     elif reason in ("unbounded", "beyond"):
         claim = claim_scale(outcome)
         tile = claim["tile"]
+        coarser = next((s for s in outcome["scales"] if s["tile"] > tile and s["ruled_out"] is not None
+                        and s["ruled_out"] <= outcome["tolerance"]), None)  # fmt: skip
         first = f"{text}: not shown within ±{_tolerance(outcome)} in every {tile}x{tile} tile"
+        if coarser is not None:
+            first = (
+                f"{text}: within ±{_tolerance(outcome)} in every {coarser['tile']}x{coarser['tile']} tile; "
+                f"{tile}x{tile} not bounded"
+            )
         if reason == "beyond":
             first += " (a finer tile found biased differs by more than that)"
         parts.append(first)
@@ -108,8 +127,10 @@ def sentence(outcome: dict[str, Any]) -> str:
             open_ = f"{claim['tiles'] - claim['bounded']} of {claim['tiles']} tiles not bounded"
             if claim["unbounded_box"] is not None and claim["bounded"]:
                 open_ += f" ({box(claim['unbounded_box'])})"
-            if claim["passes_needed"] is not None:
+            if _reachable(claim["passes_needed"], n):
                 open_ += f"; about {claim['passes_needed']} passes a side would bound them"
+            elif claim["passes_needed"] is not None:
+                open_ += "; not reachable at this size by more passes"
             parts.append(open_)
         parts.append(f"bias ruled out per tile size: {ruled_out_list(outcome)}")
     elif reason == "undecided":
@@ -158,6 +179,24 @@ def resampling_notes(outcome: dict[str, Any]) -> list[str]:
         f"{sides}: `biased` also needs a permutation test of the whole family (Welch's t alone is not calibrated "
         f"there when tile sums are skewed): p {fmt.p_value(test['p_value'])} against "
         f"{fmt.p_value(test['level'])}, {test['resamples']} resamples"
+    ]
+
+
+#: A pass count more than this many times the passes so far is advice nobody follows: "not reachable".
+_REACHABLE_FACTOR = 64
+
+
+def _reachable(need: int | None, n: int) -> bool:
+    return need is not None and need <= _REACHABLE_FACTOR * max(n, 1)
+
+
+def reachable_scales(outcome: dict[str, Any]) -> list[tuple[int, int]]:
+    """(tile, projected passes) of the scales the budget can bound if the sides agree, finest first."""
+    budget = outcome.get("budget")
+    return [
+        (s["tile"], s["projected"])
+        for s in outcome["scales"]
+        if budget is not None and s.get("projected") is not None and s["projected"] <= budget
     ]
 
 
@@ -230,9 +269,34 @@ def next_step(outcome: dict[str, Any], check: bool = False) -> str:
         return (
             f"Render at least {outcome['identical_needed']} passes a side to rule out a rarely visible change: {more}."
         )
+    if reason == "futile":
+        reachable = reachable_scales(outcome)
+        claim = claim_scale(outcome)
+        need, budget = claim["projected"], outcome["budget"]
+        if need is not None and need <= _REACHABLE_FACTOR // 4 * budget:
+            grow = f"give it about {need} passes a side (the same command with --max-passes {need} and --resume)"
+        elif need is not None:
+            grow = f"no budget within reach bounds every {claim['tile']}x{claim['tile']} tile (about {need} passes)"
+        else:
+            grow = "only a longer reference can bound every tile (bless it with more passes)"
+        if reachable:
+            return (
+                f"The check stopped early: claim `equivalent` at a size the budget can bound, the same command with "
+                f"--equivalence-tile {reachable[0][0]} and another --out; or {grow}."
+            )
+        return f"The check stopped early: {grow}."
     if reason in ("unbounded", "beyond"):
         claim = claim_scale(outcome)
         need = claim["passes_needed"]
+        n = min(outcome["n_ref"], outcome["n_test"])
+        if need is not None and not _reachable(need, n):
+            sizes = [s["tile"] for s in outcome["scales"] if _reachable(s.get("projected"), n)
+                     and s["tile"] > claim["tile"]]  # fmt: skip
+            other = f": try --equivalence-tile {sizes[0]}" if sizes else ""
+            return (
+                f"Every {claim['tile']}x{claim['tile']} tile within the tolerance is not reachable at this size "
+                f"(about {need} passes a side){other}; or {more}."
+            )
         if need is not None:
             return f"To bound every tile within the tolerance, about {need} passes a side are needed: {more}."
         return (
