@@ -58,6 +58,11 @@ COMMAND = '[[case]]\nname = "a"\ncommand = "r'
         (CASE + "seconds = inf\n", "case 'a': 'seconds' must be a number of seconds in (0, 604800], got inf"),
         (CASE + "seconds = nan\n", "case 'a': 'seconds' must be a number of seconds in (0, 604800], got nan"),
         (CASE + 'spp = "4"\n', "case 'a': 'spp' must be a number, not text: '4'"),
+        (
+            CASE + 'tolerance = "1%"\nequivalence_tile = 24\n',
+            "case 'a': 'equivalence_tile' must be a multiple of the case's tile 16, got 24",
+        ),  # fmt: skip
+        (CASE + "equivalence_tile = 64\n", "case 'a': 'equivalence_tile' needs a 'tolerance'"),
         (CASE + 'devices = ["TPU"]\n', "case 'a': 'devices' must be one of CPU, GPU, OPTIX, CUDA, HIP, METAL, ONEAPI"),
         (CASE + 'devices = ["CPU", "CPU"]\n', "case 'a': 'devices' repeats an item: ['CPU', 'CPU']"),
         ('[[case]]\nname = "abc\\n"\nscene = "corner"\n', "'name' must be letters, digits, '-', '_' or '.'"),

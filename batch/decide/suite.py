@@ -24,6 +24,7 @@ A suite file::
     seconds = 60              # optional: the most render seconds of the test side
     devices = ["CPU", "OPTIX"]
     tolerance = "2%"          # optional: stop early at `equivalent` once every tile is bounded within it
+    equivalence_tile = 64     # optional: ...every tile of this size (a multiple of `tile`; default `tile` itself)
     expect = "same"           # or "biased": a known difference, the case passes when it is found
     sampling_pattern = "TABULATED_SOBOL"
     test_sampling_pattern = "BLUE_NOISE"  # optional: the test side's pattern (a known difference between them)
@@ -68,6 +69,7 @@ _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 _CASE_KEYS = {
     "name", "scene", "blend", "blend_scene", "set", "resolution", "spp", "tile", "passes", "seconds", "devices",
     "tolerance", "expect", "sampling_pattern", "test_sampling_pattern", "why", "planted", "command",
+    "equivalence_tile",
 }  # fmt: skip
 
 
@@ -87,6 +89,7 @@ class Case:
     seconds: float | None = None
     devices: tuple[str, ...] = ("CPU",)
     tolerance: float | None = None
+    equivalence_tile: int | None = None  # the tile size `equivalent` claims (default: the case's tile)
     expect: str = "same"
     sampling_pattern: str | None = None
     test_sampling_pattern: str | None = None  # the test side's, where it differs from the reference's on purpose
@@ -246,6 +249,12 @@ def _case(entry: dict, label: str, folder: Path, problems: list[str]) -> Case | 
         if key in entry and not isinstance(entry[key], str):
             problems.append(f"{label}: {key!r} must be text, got {entry[key]!r}")
         texts[key] = entry.get(key) if isinstance(entry.get(key), str) else None
+    claim = entry.get("equivalence_tile")
+    tile = values.get("tile", 16)
+    if claim is not None and (isinstance(claim, bool) or not isinstance(claim, int) or claim < tile or claim % tile):
+        problems.append(f"{label}: 'equivalence_tile' must be a multiple of the case's tile {tile}, got {claim!r}")
+    elif claim is not None and values.get("tolerance") is None:
+        problems.append(f"{label}: 'equivalence_tile' needs a 'tolerance'")
     if len(problems) > found:
         return None
     case = Case(
@@ -261,6 +270,7 @@ def _case(entry: dict, label: str, folder: Path, problems: list[str]) -> Case | 
         seconds=values.get("max_seconds"),
         devices=values.get("devices", ("CPU",)),
         tolerance=values.get("tolerance"),
+        equivalence_tile=claim,
         expect=expect,
         sampling_pattern=values.get("sampling_pattern"),
         test_sampling_pattern=test_pattern,
@@ -479,6 +489,7 @@ def _run_case(
             max_seconds=case.seconds,
             alpha=suite.alpha,
             tolerance=case.tolerance,
+            equivalence_tile=case.equivalence_tile,
             resume=resume,
             fixed_reference=True,
         )
