@@ -151,6 +151,11 @@ def test_a_failing_command_is_one_line_and_keeps_the_passes_before_it(toy):
     done = batch("render", "--command", "true {seed} {out}", "--seeds", "0:2", "--spp", 1, "--out", "t.npz",
                  cwd=toy, check=2)  # fmt: skip
     assert done.stderr.startswith("error: --command exited 0 for seed 0 without writing {out} (")
+    # a command's own exit code 130 is its failure, not an interrupt of the tool (nobody pressed Ctrl-C)
+    (toy / "stop.py").write_text("import sys\nsys.exit(130)\n")
+    done = batch("render", "--command", "{python} stop.py {seed} {out}", "--seeds", "0:2", "--spp", 1, "--out", "s.npz",
+                 cwd=toy, check=2)  # fmt: skip
+    assert done.stderr.splitlines() == ["error: --command failed for seed 0 (exit code 130): no output"]
 
 
 def suite_file(folder: Path, passes: int = 16) -> Path:

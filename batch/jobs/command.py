@@ -139,7 +139,10 @@ class CommandRenderer:
         except OSError as exc:
             raise BatchError(f"--command: can't run {line[0]!r} in {self.cwd}: {exc.strerror or exc}") from None
         if done.returncode in (-signal.SIGINT, -signal.SIGTERM, 130):
-            raise KeyboardInterrupt  # the stop (Ctrl-C, a cancel) reached the command too
+            # A stop (Ctrl-C, a cancel) that reached the command reached this process too: its handler runs at the
+            # next instruction (the pause lets a signal still on its way arrive) and raises the interrupt here.
+            # Past it, nobody stopped the tool: the exit code is the command's own, a failure like any other.
+            time.sleep(0.05)
         said = (done.stderr.strip() or done.stdout.strip())[-ERROR_TAIL:]
         if done.returncode != 0:
             raise BatchError(f"--command failed for seed {seed} (exit code {done.returncode}): "
