@@ -186,6 +186,10 @@ Each is its own command, run from the repository root on the same cached pools; 
   against the default and Welch's test
   ([docs/findings/sparse_paired_differences.md](../findings/sparse_paired_differences.md)).
 - `python -m benchmarks.production`: a 1920×1080 `check`, its wall time split into rendering and everything else.
+- `python -m benchmarks.unequal` (unequal.csv, unequal.png): `biased` on rendered A/A splits whose sides differ in
+  passes (4 v 256 to 256 v 8, suites blessed at 256 and 512), before and after the permutation test, with
+  detection and paired A/A beside them. `python -m benchmarks.futility` (futility.csv): the futility stop of
+  `equivalent` on rendered A/A pairs. Findings: [docs/findings/unequal_passes.md](../findings/unequal_passes.md).
 """
 
 

@@ -55,7 +55,7 @@ def line(name: str, value: float, baseline: float, goal: float | None, unit: str
 
 def synthetic_run(height: int, width: int, first_seed: int, rng: np.random.Generator, passes: int = PASSES,
                   shift: float = 0.0) -> wc.TileStats:  # fmt: skip
-    ty, tx = height // TILE, width // TILE
+    ty, tx = -(-height // TILE), -(-width // TILE)  # partial tiles at the edges, as the tool makes them
     sums = rng.normal(1000.0 + shift, 10.0, (passes, ty, tx, 3))
     pixels = rng.uniform(0.0, 2.0, (height, width, 3)).astype(np.float32) * passes
     return wc.TileStats.from_sums(sums, range(first_seed, first_seed + passes), height, width, TILE, pixel_sum=pixels)

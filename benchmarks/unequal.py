@@ -167,7 +167,7 @@ def chart(rows: list[dict], path: Path) -> None:
     for ax, (kind, title) in zip(axes[0], panels, strict=True):
         mine = [r for r in rows if r["kind"] == kind]
         labels = list(dict.fromkeys(f"{r['case']}\n{r['config']}" for r in mine))
-        for offset, method in ((-0.2, "before"), (0.2, "after")):
+        for offset, method, colour in ((-0.2, "before", "tab:blue"), (0.2, "after", "tab:orange")):
             line = [r for r in mine if r["method"] == method]
             if not line:
                 continue
@@ -176,11 +176,12 @@ def chart(rows: list[dict], path: Path) -> None:
             err = np.array(
                 [[100 * (r["share"] - r["low"]) for r in line], [100 * (r["high"] - r["share"]) for r in line]]
             )
-            ax.errorbar(share, y, xerr=err, fmt="o", label=method, capsize=3)
+            ax.errorbar(share, y, xerr=err, fmt="o", label=method, capsize=3, color=colour)
         if kind != "detection":
             ax.axvline(100 * ALPHA, color="k", lw=0.8, ls="--", label="alpha")
             ax.axvline(150 * ALPHA, color="r", lw=0.8, ls=":", label="1.5 alpha")
             ax.set_xscale("symlog", linthresh=1)
+            ax.set_xlim(0, 100)
         ax.set_yticks(range(len(labels)), labels, fontsize=7)
         ax.invert_yaxis()
         ax.set(title=title, xlabel="% of runs called biased")
