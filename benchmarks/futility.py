@@ -30,8 +30,11 @@ from .pools import PoolSpec, load_or_render, say
 TILE, RESOLUTION, TOLERANCE, ALPHA = 16, 64, 0.01, 0.01
 SCENES = (("corner", "diffuse corner", 1000), ("glossy", "glossy room", 1000),
           ("corner_glass", "glass caustic", 1000), ("textured", "textured", 400))  # fmt: skip
-FULL = {"runs": 60, "budget": 256}
-QUICK = {"runs": 2, "budget": 20, "pool": 48}
+#: Real biases that `check` finds late in its budget: what the futility stop gives away (400-pass pools).
+DETECTION = (("corner_glass", "cycles.sample_clamp_indirect=20", "caustic, indirect clamp 20"),
+             ("textured", "cycles.blur_glossy=1.0", "textured, Filter Glossy 1.0"))  # fmt: skip
+FULL = {"runs": 60, "budget": 256, "detection_runs": 30, "detection_pool": 400}
+QUICK = {"runs": 2, "budget": 20, "pool": 48, "detection_runs": 2, "detection_pool": 40}
 
 
 @contextlib.contextmanager
@@ -44,12 +47,13 @@ def without_futility():
         decision.FUTILITY_MARGIN = saved
 
 
-def one_check(pool, ref_order, test_order, budget: int, claim: int | None = None) -> wc.Outcome:
+def one_check(pool, ref_order, test_order, budget: int, claim: int | None = None, test_pool=None) -> wc.Outcome:
     plan = wc.SequentialPlan(max_passes=budget, alpha=ALPHA, tolerance=TOLERANCE, equivalence_tile=claim)
-    fractions = []
+    fractions, test_pool = [], test_pool or pool
     for n in wc.look_schedule(budget):
         fractions.append(n / budget)
-        look = wc.sequential_look(pool.stats(ref_order[:n], TILE), pool.stats(test_order[:n], TILE), plan, fractions)
+        ref, test = pool.stats(ref_order[:n], TILE), test_pool.stats(test_order[:n], TILE)
+        look = wc.sequential_look(ref, test, plan, fractions)
         if look.verdict is not None:
             break
     return look.outcome
@@ -99,6 +103,34 @@ def measure(budget: dict, cache: Path) -> list[dict]:
             f"recommended size equivalent {sum(r['recommended_verdict'] == 'equivalent' for r in recommended)}"
             f"/{len(recommended)}"
         )
+    return rows + detection(budget, cache)
+
+
+def detection(budget: dict, cache: Path) -> list[dict]:
+    """Real biases, paired (the same seeds, budget the pool) and unpaired (disjoint halves): `check` with and
+    without the futility stop on the same passes."""
+    rows = []
+    for number, (scene, change, label) in enumerate(DETECTION):
+        size = budget["detection_pool"]
+        reference = load_or_render(PoolSpec(scene, (), RESOLUTION, passes=size), cache, scene)
+        changed = load_or_render(PoolSpec(scene, (change,), RESOLUTION, passes=size), cache, label)
+        for paired in (True, False):
+            rng = np.random.default_rng([40, number, paired])
+            most = size if paired else size // 2
+            found = {"with": [], "without": []}
+            for _ in range(budget["detection_runs"]):
+                order = rng.permutation(size)
+                ref_order, test_order = (order, order) if paired else (order[: size // 2], order[size // 2 :])
+                found["with"].append(one_check(reference, ref_order, test_order, most, test_pool=changed))
+                with without_futility():
+                    found["without"].append(one_check(reference, ref_order, test_order, most, test_pool=changed))
+            for method, outcomes in found.items():
+                biased = [min(o.n_ref, o.n_test) for o in outcomes if o.verdict == "biased"]
+                rows.append({"scene": label, "run": "paired" if paired else "unpaired", "budget": most,
+                             "verdict": f"biased {len(biased)}/{len(outcomes)}", "reason": f"{method} the stop",
+                             "passes": float(np.median(biased)) if biased else None})  # fmt: skip
+                say(f"  {label}, {rows[-1]['run']}, {method} the futility stop: {rows[-1]['verdict']}, median passes "
+                    f"{rows[-1]['passes']}")  # fmt: skip
     return rows
 
 

@@ -94,7 +94,7 @@ def test_ctrl_c_keeps_everything_resume_continues_and_the_budget_grows(tmp_path)
     """Interrupted at its fourth look, resumed to its budget, then given more passes: the looks made stand, the
     new ones come at the schedule's next points and both sides' seeds grow without overlapping. 16 spp a pass,
     so that the interrupt lands long before the budget is spent however loaded the machine."""
-    common = (*SMALL, "--unpaired", "--spp", 16, "--tolerance", "0.05%", "--out", tmp_path)
+    common = (*SMALL, "--unpaired", "--spp", 16, "--tolerance", "0.05%", "--no-futility", "--out", tmp_path)
     args = [sys.executable, "-m", "batch", "check", *map(str, common), "--max-passes", "200", "--json-progress"]
     proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     seen = 0
@@ -178,3 +178,24 @@ def test_a_check_started_before_the_early_design_resumes_without_it(tmp_path):
     report = json.loads((tmp_path / "report.json").read_text())
     assert state["plan"]["early_share"] == 0.0 and report["check"]["early_share"] == 0.0
     assert state["looks"][-1]["passes"] == 21 and "by 16 passes" not in report["method"]
+
+
+@pytest.mark.slow
+def test_equivalent_out_of_reach_stops_early_names_what_the_budget_bounds_and_resumes_to_the_same(tmp_path):
+    """An A/A check whose 16x16 tiles no budget within reach bounds within 0.1 %: it stops `inconclusive` from an
+    eighth of its budget (not at the budget), names the tile sizes the budget can bound, answers the same when
+    resumed, refuses a resume with another design by naming the option, and with --no-futility renders it all."""
+    common = (*SMALL, "--unpaired", "--tolerance", "0.1%", "--max-passes", 256)
+    done = check(*common, "--out", tmp_path / "a", expect=3)
+    state = json.loads((tmp_path / "a" / "check.json").read_text())
+    last = state["looks"][-1]
+    assert last["reason"] == "futile" and 32 <= last["passes"] < 256, last
+    assert "verdict: inconclusive: stopped early, every 16x16 tile within ±0.10 % would take about" in done.stdout
+    assert "beyond the budget of 256" in done.stdout and "--equivalence-tile" in done.stdout
+    again = check(*common, "--out", tmp_path / "a", "--resume", expect=3)
+    assert json.loads((tmp_path / "a" / "check.json").read_text())["looks"] == state["looks"]
+    assert again.stdout.splitlines()[0] == done.stdout.splitlines()[0]
+    refused = check(*common, "--no-futility", "--out", tmp_path / "a", "--resume", expect=2)
+    assert refused.stderr.strip().endswith("it was started with the futility stop, not --no-futility"), refused.stderr
+    full = check(*common, "--no-futility", "--out", tmp_path / "b", expect=3)
+    assert json.loads((tmp_path / "b" / "check.json").read_text())["looks"][-1]["passes"] == 256, full.stdout

@@ -104,6 +104,7 @@ class SequentialPlan:
     equivalence_tile: int | None = None  # claim `equivalent` at this tile size (default: the finest)
     reserve: float = EXTENSION_RESERVE  # the share of alpha kept for looks past max_passes (a grown budget)
     early_share: float = EARLY_SHARE  # the share of each `biased` level spent by the early design (0: none)
+    futility: bool = True  # stop `inconclusive` once `equivalent` is out of the budget's reach (`decision`)
 
     def __post_init__(self):
         check_int("max_passes", self.max_passes, minimum=FIRST_LOOK)
@@ -324,7 +325,7 @@ def sequential_look(
         final=bool(fractions[-1] >= 1.0) if final is None else final,
         family="every tile-channel of every tile size, at every look",
         resampling=resampling,
-        budget=plan.max_passes if budget is None else budget,
+        budget=(plan.max_passes if budget is None else budget) if plan.futility else None,
     )
     outcome = decide(
         scales, tests, runs, evidence, plan.alpha, plan.tolerance, _claim(plan, scales), identical, whole, uncovered

@@ -143,6 +143,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="claim `equivalent` for N x N tiles (a multiple of --tile) instead of the finest: a weaker claim, "
         "stated with its tile size everywhere the verdict is shown",
     )
+    k.add_argument(
+        "--no-futility",
+        dest="futility",
+        action="store_false",
+        help="render the whole budget even when `equivalent` is out of its reach (by default the check stops "
+        "`inconclusive` from an eighth of the budget when its tile size would need more than 4x the budget and no "
+        "tile points to a bias; that stop gives up a bias found only late in the budget)",
+    )
     add_options(k, ("alpha",), defaults={"alpha": DEFAULT_ALPHA})
     budget = k.add_mutually_exclusive_group()
     add_options(

@@ -58,6 +58,7 @@ class CheckJob:
     alpha: float = 0.01
     tolerance: float | None = 0.01
     equivalence_tile: int | None = None  # claim `equivalent` at this tile size (default: the finest)
+    futility: bool = True  # stop `inconclusive` once `equivalent` is out of the budget's reach (welch_core.decision)
     resume: bool = False
     #: The reference is a finished statistics file (a suite's blessed reference), not rendered: only the test
     #: side renders, and the looks' information fractions count its passes against the reference's fixed ones.
@@ -75,6 +76,7 @@ class CheckJob:
             alpha=self.alpha,
             tolerance=self.tolerance,
             equivalence_tile=self.equivalence_tile,
+            futility=self.futility,
             **early,
         )
 
@@ -189,7 +191,9 @@ class Check:
         if stored is not None and state.get("max_seconds") is None and self.job.max_seconds is None:
             planned = self.job.plan(stored.max_passes, stored.early_share)  # the stored design; the budget may grow
             if planned != stored:
-                raise BatchError(f"can't resume {self.job.out}: it was started with another alpha or tolerance")
+                raise BatchError(
+                    f"can't resume {self.job.out}: it was started with {_plan_difference(stored, planned)}"
+                )
             if self.job.max_passes < budget:
                 raise BatchError(
                     f"can't resume {self.job.out} with --max-passes {self.job.max_passes}: it has a budget of "
@@ -371,6 +375,25 @@ class Check:
         return run if run.n <= n else run.subset(range(n))
 
 
+def _plan_difference(stored: wc.SequentialPlan, planned: wc.SequentialPlan) -> str:
+    """What differs between the design a check was started with and the one asked for, named by option."""
+
+    def shown(name: str, value) -> str:
+        if name == "futility":
+            return "the futility stop" if value else "--no-futility"
+        if name == "equivalence_tile":
+            return "the finest tile as the claim" if value is None else f"--equivalence-tile {value}"
+        if name == "tolerance":
+            return "--tolerance off" if value is None else f"--tolerance {100 * value:g}%"
+        return f"--{name} {value:g}"
+
+    names = ("alpha", "tolerance", "equivalence_tile", "futility")
+    differ = [n for n in names if getattr(stored, n) != getattr(planned, n)]
+    return "; ".join(f"{shown(n, getattr(stored, n))}, not {shown(n, getattr(planned, n))}" for n in differ) or (
+        "another design"
+    )
+
+
 def _side_record(job: RenderJob) -> list[str]:
     """What must stay the same for a side to be resumed: its job's arguments, its statistics file by its name in
     the check's folder (the folder may be given another way, or moved)."""
@@ -534,6 +557,7 @@ def check_job_from_args(args) -> CheckJob:
         alpha=args.alpha,
         tolerance=args.tolerance,
         equivalence_tile=args.equivalence_tile,
+        futility=args.futility,
         resume=args.resume,
         workers=args.workers,
         scheduler=args.scheduler,
