@@ -101,7 +101,8 @@ def sentence(outcome: dict[str, Any]) -> str:
         first = (
             f"{text}: stopped early, every {tile}x{tile} tile within ±{_tolerance(outcome)} would take "
             + (f"about {need} passes a side" if need is not None else "more passes than the reference has")
-            + f" (projected from the variances), beyond the budget of {outcome['budget']}"
+            + f" (projected from the variances), beyond the budget of {outcome['budget']}; no tile pointed to a bias "
+            "by then"
         )
         parts.append(first)
         reachable = reachable_scales(outcome)
@@ -279,12 +280,16 @@ def next_step(outcome: dict[str, Any], check: bool = False) -> str:
             grow = f"no budget within reach bounds every {claim['tile']}x{claim['tile']} tile (about {need} passes)"
         else:
             grow = "only a longer reference can bound every tile (bless it with more passes)"
+        search = (
+            " The stop also ended the search for `biased`: a bias that shows only later in the budget is found with "
+            "--no-futility, which renders the whole budget."
+        )
         if reachable:
             return (
                 f"The check stopped early: claim `equivalent` at a size the budget can bound, the same command with "
-                f"--equivalence-tile {reachable[0][0]} and another --out; or {grow}."
+                f"--equivalence-tile {reachable[0][0]} and another --out; or {grow}.{search}"
             )
-        return f"The check stopped early: {grow}."
+        return f"The check stopped early: {grow}.{search}"
     if reason in ("unbounded", "beyond"):
         claim = claim_scale(outcome)
         need = claim["passes_needed"]
