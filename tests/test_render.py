@@ -114,7 +114,8 @@ def test_configure_unbiased_records_changes_and_keeps_biased_settings(factory):
     with pytest.raises(render.RenderSetupError) as info:
         render.configure_unbiased(scene, sampling_pattern="SOBOL")
     assert str(info.value) == (
-        "--sampling-pattern SOBOL is not a pattern of Blender 5.0.1 (it has AUTOMATIC, TABULATED_SOBOL, BLUE_NOISE)"
+        f"--sampling-pattern SOBOL is not a pattern of Blender {bpy.app.version_string} (it has AUTOMATIC, "
+        "TABULATED_SOBOL, BLUE_NOISE)"
     )
 
 

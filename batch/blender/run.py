@@ -1,7 +1,7 @@
 """Render runs: many passes with different seeds into one statistics file, with checkpoints and resume.
 
-Imports bpy (through `batch.render`); the job, argument parsing and reports live elsewhere so they import
-without it.
+Imports bpy (through `batch.blender.render`) where a job renders with Cycles, not for another renderer's command;
+the job, argument parsing and reports live elsewhere so they import without it.
 """
 
 from __future__ import annotations
@@ -21,7 +21,6 @@ from ..jobs.passes import add_layered_pass, add_pass
 from ..jobs.protocol import ChunkRequest, parse_request
 from ..jobs.rna import render_size
 from ..present.progress import Progress
-from . import render
 
 
 class RunError(BatchError):
@@ -38,6 +37,8 @@ def prepare_scene(job: RenderJob, warn=None):
     `warn`, if given, is called with a message for each notable setting changed for the passes. An override that
     changes a setting the job fixes (samples, resolution, ...) is refused: what is rendered is what is recorded.
     """
+    from . import render  # imports bpy: only a Cycles job comes here
+
     overrides = [parse_override(text) for text in job.overrides]  # syntax errors before the slow part
     scene = render.open_scene(job.blend, job.scene, job.blend_scene)
     changes = render.configure_unbiased(scene, job.device, job.spp, job.resolution, job.sampling_pattern, job.lobes)
@@ -115,7 +116,11 @@ def _start_stats(job: RenderJob, size, info: wc.RunInfo) -> wc.TileStats:
 
 def _start_layers(job: RenderJob, scene, stats: wc.TileStats) -> dict[str, wc.TileStats]:
     """The layers of `job.lobes` (light components, light groups), new or those of the checkpoint."""
-    names = render.layer_names(scene, job.lobes) if job.lobes else []
+    names = []
+    if job.lobes:
+        from . import render  # imports bpy: layers are Cycles'
+
+        names = render.layer_names(scene, job.lobes)
     if not os.path.exists(job.out):
         return {name: wc.TileStats(stats.height, stats.width, stats.tile, 3, stats.info) for name in names}
     layers = wc.load_layers(job.out)
@@ -138,6 +143,8 @@ def render_run(job: RenderJob, progress: Progress, requests=None) -> wc.TileStat
         if job.command is not None:  # another renderer: no scene, the size is its images'
             scene, info, renderer = None, command.run_info(job), command.CommandRenderer(job)
         else:
+            from . import render  # imports bpy: a command job renders without it
+
             scene, info = prepare_scene(job, progress.warning)
             limit_threads(scene)
             renderer = render.PassRenderer(scene, lobes=job.lobes)

@@ -63,9 +63,13 @@ class Parser(argparse.ArgumentParser):
         self.exit(Exit.USAGE, text + "\n")
 
 
+#: The console script (pyproject.toml's [project.scripts]): the same commands as ``python -m batch``.
+PROG = "welch-bias"
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = Parser(
-        prog="python -m batch",
+        prog=PROG if os.path.basename(sys.argv[0]) == PROG else "python -m batch",
         description="Detect bias in Monte Carlo renderers with Welch's t-test: render passes with different seeds, "
         "collect per-tile statistics, compare two runs.",
         epilog="Exit codes: 0 no evidence of bias / done, 1 biased, 2 usage or input error, 3 inconclusive, "
@@ -468,6 +472,9 @@ def cmd_render(args) -> int:
 
         run_job(job, progress)
     else:
+        from ..jobs.launch import require_bpy
+
+        require_bpy(job)
         from ..blender.run import chunk_requests, render_run
 
         render_run(job, progress, chunk_requests(sys.stdin) if args.serve else None)

@@ -75,6 +75,8 @@ def job_command(
         env.pop("PYTHONHOME", None)
         env["PYTHONPATH"] = str(ROOT)
         return Command([job.python, "-m", "batch", "render", *job.replace(python=None).to_argv(), *mode], env)
+    if python == sys.executable:
+        require_bpy(job)
     paths = [str(ROOT), *python_paths, *filter(None, env.get("PYTHONPATH", "").split(os.pathsep))]
     env["PYTHONPATH"] = os.pathsep.join(dict.fromkeys(paths))
     return Command([python, "-m", "batch", "render", *child.to_argv(), *mode], env)
@@ -99,6 +101,22 @@ def _ask(option: str, argv: list[str], asking: str) -> subprocess.CompletedProce
         raise BatchError(f"{option} {path} did not answer {asking} within {VERSION_TIMEOUT:.0f} s") from None
     except OSError as exc:
         raise BatchError(f"{option} {path}: can't run it ({exc.strerror or exc})") from None
+
+
+#: What a Cycles render without bpy says, in one line.
+NO_BPY = (
+    "rendering with Cycles needs the bpy module, which this Python lacks: install it with pip install "
+    "'welch-bias[cycles]' (bpy 5.0.1 runs on Python 3.11, bpy 5.2.3 on 3.13), or render with --blender PATH (a "
+    "Blender binary) or --python PATH (a Python with bpy)"
+)
+
+
+def require_bpy(job: RenderJob) -> None:
+    """BatchError (`NO_BPY`) when `job` renders with Cycles in this Python and it has no bpy module."""
+    import importlib.util
+
+    if job.command is None and not job.blender and not job.python and importlib.util.find_spec("bpy") is None:
+        raise BatchError(NO_BPY)
 
 
 @functools.cache
