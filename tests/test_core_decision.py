@@ -210,3 +210,19 @@ def test_the_whole_image_interval_and_the_largest_tile_are_reported():
     assert o.largest.simultaneous == "every tile-channel of every tile size"
     assert o.largest.low > 0.03  # simultaneous, and still away from the rest
     assert math.isfinite(o.most_significant.p_value) and o.most_significant.trusted
+
+
+def test_a_bias_found_in_larger_tiles_outlines_no_tile_that_is_identical_on_both_sides():
+    """A 1.2 % bias over the left half of a 4x4 grid of 8-px tiles whose top-left tile is black on both sides (zero
+    in every pass): found at a larger size, it outlines the finest tiles of the region it was found in, not the
+    black one."""
+    rng = np.random.default_rng(12)
+    mean = np.full((4, 4, 3), 100.0)
+    ref_sums = mean + rng.normal(0, 3, (64, 4, 4, 3))
+    test_sums = mean + rng.normal(0, 3, (64, 4, 4, 3))
+    test_sums[:, :, :2] *= 1.012
+    ref_sums[:, 0, 0], test_sums[:, 0, 0] = 0.0, 0.0
+    outcome = compare(make_run(ref_sums, range(64)), make_run(test_sums, range(100, 164)), 0.01).outcome
+    assert outcome.verdict == "biased" and outcome.significant.any()
+    assert outcome.scales[0].significant == 0 and outcome.scales[1].significant  # found in 16-px tiles only
+    assert not outcome.significant[0, 0] and not outcome.significant[:, 2:].any()

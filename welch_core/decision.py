@@ -509,14 +509,17 @@ def _beyond(scales, tests, significant, claim_tile, tolerance) -> bool:
 def _found_where(scales, significant) -> np.ndarray:
     """The finest tiles the map outlines: those found significant at the finest size where anything was found
     (the finest tiles themselves if any of them; a bias found only in larger tiles outlines the finest tiles
-    inside those, so a `biased` verdict never comes with an empty map)."""
+    inside those, so a `biased` verdict never comes with an empty map), less the tiles with nothing to test
+    (identical on both sides in every pass, a black background, or untestable)."""
     finest = scales[0]
     ty, tx = finest.tile_pvalues.shape
+    tested = (finest.reasons == Reason.VALID).any(axis=-1)  # not a tile identical on both sides, or untestable
     for scale, sig in zip(scales, significant, strict=True):
         tiles = np.asarray(sig).any(axis=-1)
         if tiles.any():
             f = scale.tile // finest.tile
-            return np.repeat(np.repeat(tiles, f, axis=0), f, axis=1)[:ty, :tx]
+            inside = np.repeat(np.repeat(tiles, f, axis=0), f, axis=1)[:ty, :tx]
+            return inside & tested if (inside & tested).any() else inside
     return np.zeros((ty, tx), bool)
 
 
