@@ -163,3 +163,11 @@ def test_a_level_below_the_smallest_p_value_draws_nothing():
     result = permutation_max_t(runs_of(ref, test), 1e-6)
     assert result.limited and not result.rejects and result.resamples == 0
     assert all(np.isnan(a).all() for a in result.adjusted)
+
+
+def test_many_passes_a_side_are_tested_too():
+    """600 v 700 passes have more distinct splits than a float can count: the smallest p-value is the resamples'."""
+    rng = np.random.default_rng(8)
+    ref, test = run(rng.normal(100, 5, (600, 2, 2, 3))), run(rng.normal(100, 5, (700, 2, 2, 3)) + 3, 1000)
+    result = permutation_max_t(runs_of(ref, test), 0.01)
+    assert result.smallest == pytest.approx(1 / 1000) and result.rejects

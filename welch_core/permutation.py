@@ -114,8 +114,8 @@ def permutation_max_t(runs, level: float) -> Resampling:
     n_ref, n_test = runs[0][0].n, runs[0][1].n
     total = n_ref + n_test
     planned = min(MAX_RESAMPLES, max(1, math.ceil(RESAMPLES_PER_LEVEL / level) - 1))
-    distinct = math.comb(total, n_test)
-    smallest = max(1.0 / (planned + 1), 1.0 / distinct)
+    distinct = math.comb(total, n_test)  # an int beyond any float for a few hundred passes a side
+    smallest = max(1.0 / (planned + 1), 1.0 / distinct if distinct < 10**300 else 0.0)
     empty = tuple(np.full(shape, np.nan) for shape in shapes)
     if columns is None or n_ref < 2 or n_test < 2 or smallest > level:  # nothing to test, or out of reach
         return Resampling(1.0, level, 0, smallest, empty)
