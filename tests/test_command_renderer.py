@@ -151,6 +151,20 @@ def test_a_failing_command_is_one_line_and_keeps_the_passes_before_it(toy):
     done = batch("render", "--command", "true {seed} {out}", "--seeds", "0:2", "--spp", 1, "--out", "t.npz",
                  cwd=toy, check=2)  # fmt: skip
     assert done.stderr.startswith("error: --command exited 0 for seed 0 without writing {out} (")
+    # a pass with another channel set (a light component written instead of the image) is refused in one line
+    (toy / "layers.py").write_text(
+        "import sys\nimport numpy as np\nimport welch_core as wc\nseed, out = int(sys.argv[1]), sys.argv[2]\n"
+        "image = np.ones((32, 48), np.float32)\n"
+        "names = ['diffuse.R', 'diffuse.G', 'diffuse.B'] if seed == 2 else ['R', 'G', 'B']\n"
+        "wc.exr.write_exr_channels(out, {n: image for n in names})\n"
+    )
+    done = batch("render", "--command", "{python} layers.py {seed} {out}", "--seeds", "0:4", "--spp", 1, "--tile",
+                 16, "--out", "l.npz", "--checkpoint-every", 1, cwd=toy, check=2)  # fmt: skip
+    assert done.stderr.splitlines()[-1] == (
+        "error: --command wrote channels ['diffuse.B', 'diffuse.G', 'diffuse.R'] for seed 2, its first pass ['B', "
+        "'G', 'R']: every pass must hold the same channels"
+    )
+    assert wc.load_stats(toy / "l.npz").seeds == [0, 1]
     # a command's own exit code 130 is its failure, not an interrupt of the tool (nobody pressed Ctrl-C)
     (toy / "stop.py").write_text("import sys\nsys.exit(130)\n")
     done = batch("render", "--command", "{python} stop.py {seed} {out}", "--seeds", "0:2", "--spp", 1, "--out", "s.npz",

@@ -65,7 +65,11 @@ def read_exr(path: str | os.PathLike) -> np.ndarray:
     Takes channels R, G, B, else a ``Combined`` layer's ``<layer>.R/G/B`` (Blender's ``ViewLayer.Combined.R``),
     else the first layer (by name) that has R, G and B.
     """
-    channels = read_exr_channels(path)
+    return colour_of(read_exr_channels(path), path)
+
+
+def colour_of(channels: dict[str, np.ndarray], path: str | os.PathLike) -> np.ndarray:
+    """The colour `read_exr` takes from an EXR's `channels` (read from `path`, named in the error)."""
     layers = sorted({k.rsplit(".", 1)[0] + "." for k in channels if "." in k})
     # A "Combined" layer before any other (Blender's AO, DiffCol, ... passes sort before it by name).
     for prefix in ["", *sorted(layers, key=lambda layer: not layer.endswith("Combined."))]:

@@ -108,6 +108,7 @@ class CommandRenderer:
         self._folder: tempfile.TemporaryDirectory | None = None
         self._probed: tuple[int, object, float] | None = None  # (seed, image, seconds) rendered to learn the size
         self.replayed_seconds = 0.0  # the render seconds of the last pass `render` returned from the probe
+        self._channels: list[str] | None = None  # the channel names of the first pass this process read
 
     def __enter__(self) -> CommandRenderer:
         self._folder = tempfile.TemporaryDirectory(prefix="welch-command-")
@@ -150,6 +151,15 @@ class CommandRenderer:
         if not os.path.exists(out):
             raise BatchError(f"--command exited 0 for seed {seed} without writing {{out}} ({out})")
         try:
-            return wc.read_exr(out)
+            channels = wc.read_exr_channels(out)
+            names = sorted(channels)
+            if self._channels is None:
+                self._channels = names
+            elif names != self._channels:  # another layer written by mistake: its colour is not the image's
+                raise BatchError(
+                    f"--command wrote channels {names} for seed {seed}, its first pass {self._channels}: every pass "
+                    "must hold the same channels"
+                )
+            return wc.exr.colour_of(channels, out)
         finally:
             os.remove(out)
