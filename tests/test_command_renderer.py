@@ -165,6 +165,14 @@ def test_a_failing_command_is_one_line_and_keeps_the_passes_before_it(toy):
         "'G', 'R']: every pass must hold the same channels"
     )
     assert wc.load_stats(toy / "l.npz").seeds == [0, 1]
+    # ...and so is a pass of another size, without advice about non-finite pixels
+    (toy / "size.py").write_text(
+        "import sys\nimport numpy as np\nimport welch_core as wc\nseed, out = int(sys.argv[1]), sys.argv[2]\n"
+        "wc.write_exr(out, np.ones((40 if seed == 2 else 32, 48, 3), np.float32))\n"
+    )
+    done = batch("render", "--command", "{python} size.py {seed} {out}", "--seeds", "0:4", "--spp", 1, "--tile",
+                 16, "--out", "z.npz", cwd=toy, check=2)  # fmt: skip
+    assert done.stderr.splitlines()[-1] == "error: `image` must be 32x48 (height x width) like the run, got 40x48"
     # a command's own exit code 130 is its failure, not an interrupt of the tool (nobody pressed Ctrl-C)
     (toy / "stop.py").write_text("import sys\nsys.exit(130)\n")
     done = batch("render", "--command", "{python} stop.py {seed} {out}", "--seeds", "0:2", "--spp", 1, "--out", "s.npz",

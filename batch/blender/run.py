@@ -240,7 +240,9 @@ def render_passes(
                 if not added:
                     continue
             except wc.WelchInputError as exc:
-                raise RunError(f"{exc} (use --on-nan skip or keep to go on)") from None
+                # --on-nan answers non-finite pixels only: another size or layer set is no pass of this run
+                hint = " (use --on-nan skip or keep to go on)" if "non-finite" in str(exc) else ""
+                raise RunError(f"{exc}{hint}") from None
             pending += 1
             # A command's first pass may have been rendered earlier, to learn the image size: its time counts.
             progress.pass_done(seed, time.perf_counter() - start + getattr(renderer, "replayed_seconds", 0.0))
