@@ -63,6 +63,10 @@ COMMAND = '[[case]]\nname = "a"\ncommand = "r'
             "case 'a': 'equivalence_tile' must be a multiple of the case's tile 16, got 24",
         ),  # fmt: skip
         (CASE + "equivalence_tile = 64\n", "case 'a': 'equivalence_tile' needs a 'tolerance'"),
+        (
+            CASE + "devices = []\n",
+            "case 'a': 'devices' must name at least one of CPU, GPU, OPTIX, CUDA, HIP, METAL, ONEAPI",
+        ),
         (CASE + 'devices = ["TPU"]\n', "case 'a': 'devices' must be one of CPU, GPU, OPTIX, CUDA, HIP, METAL, ONEAPI"),
         (CASE + 'devices = ["CPU", "CPU"]\n', "case 'a': 'devices' repeats an item: ['CPU', 'CPU']"),
         ('[[case]]\nname = "abc\\n"\nscene = "corner"\n', "'name' must be letters, digits, '-', '_' or '.'"),

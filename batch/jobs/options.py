@@ -301,6 +301,8 @@ def from_mapping(entry: dict, label: str, problems: list[str]) -> dict[str, Any]
             if option.many:
                 if not isinstance(value, list):
                     raise BatchError(f"'{option.key}' must be a list, got {_show(value)}")
+                if option.dest == "devices" and not value:  # a case rendered nowhere would test nothing
+                    raise BatchError(f"'{option.key}' must name at least one of {', '.join(DEVICES)}, got []")
                 values[option.dest] = tuple(option.convert(f"'{option.key}'", v) for v in value)
                 if len(set(values[option.dest])) != len(values[option.dest]):
                     raise BatchError(f"'{option.key}' repeats an item: {_show(value)}")
