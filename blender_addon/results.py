@@ -240,6 +240,27 @@ def save_with_file(scene, key: tuple) -> None:
     scene.welch_bias.last_result_key = repr(key)
 
 
+#: What the panel reads of a saved result, and of which type: a result saved by another version of the add-on,
+#: or damaged, is left out (one line in the console) instead of failing every draw of the panel.
+SAVED_FIELDS = {"verdict": str, "verdict_title": str, "verdict_icon": str, "sentence": str, "design": str,
+                "tiles": dict, "n_ref": int, "n_test": int, "excluded": dict, "notes": list, "warnings": list,
+                "histogram": list, "histogram_expected": (int, float), "top_tiles": list, "differences": list,
+                "image": str}  # fmt: skip
+SAVED_TILES = ("valid", "total", "used", "significant")
+
+
+def _saved_problem(result) -> str | None:
+    """Why `result` (a saved summary, parsed) can't be shown, or None."""
+    if not isinstance(result, dict):
+        return f"it is a {type(result).__name__}, not a summary"
+    wrong = [k for k, kind in SAVED_FIELDS.items() if not isinstance(result.get(k), kind)]
+    if not wrong and any(not isinstance(result["tiles"].get(k), int) for k in SAVED_TILES):
+        wrong = ["tiles"]
+    if not wrong and result["verdict_icon"] not in {*VERDICT_ICONS.values(), "TIME"}:
+        wrong = ["verdict_icon"]
+    return f"{', '.join(wrong)} missing or of another kind" if wrong else None
+
+
 def restore_from_file(scene) -> bool:
     """The summary saved with the file, back into the panel (its map needs the run's statistics: not kept)."""
     import json
@@ -248,9 +269,16 @@ def restore_from_file(scene) -> bool:
     if current.result is not None or not text:
         return False
     try:
-        current.result = json.loads(text)
+        result = json.loads(text)
     except ValueError:
+        result = text
+        problem = "it is not JSON"
+    else:
+        problem = _saved_problem(result)
+    if problem is not None:
+        print(f"Welch bias: the result saved in this file is from another version or damaged ({problem}): not shown")
         return False
+    current.result = result
     current.result["saved"] = True
     return True
 

@@ -78,7 +78,7 @@ def _settings(scene, overrides):
 
 
 @pytest.mark.slow
-def test_run_renders_both_sides_and_shows_a_biased_map(corner):
+def test_run_renders_both_sides_and_shows_a_biased_map(corner, capsys):
     scene, user_file = corner
     # Brighter walls on the test side: a plain bias the test must find with a few passes.
     _settings(scene, [f"{scenes.WALL_COLOR_PATH}=0.3,0.3,0.3,1"])
@@ -119,6 +119,19 @@ def test_run_renders_both_sides_and_shows_a_biased_map(corner):
     ui.draw_result(layout, scene.welch_bias, scene)
     assert "Stale: the settings changed since this result" in layout.labels
     scene.welch_bias.spp = 1
+    # A saved result that is empty, of an older version or of the wrong type is left out with one console line,
+    # and the panel draws.
+    good = scene.welch_bias.last_result
+    for bad in ("{}", "[1, 2]", '{"verdict": 3}', json.dumps({**saved, "tiles": []}), "not json"):
+        state.reset()
+        scene.welch_bias.last_result = bad
+        capsys.readouterr()
+        assert not results.restore_from_file(scene) and state.result is None
+        said = capsys.readouterr().out.splitlines()
+        assert len(said) == 1 and said[0].startswith("Welch bias: the result saved in this file is from another"), said
+        ui.draw_result(RecordingLayout(), scene.welch_bias, scene)
+    scene.welch_bias.last_result = good
+    assert results.restore_from_file(scene)
     assert not (run_dir / "scene.blend").exists()  # the temporary copy is gone
     assert bpy.data.filepath == str(user_file) and _digest(user_file) == before
 
