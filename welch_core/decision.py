@@ -324,7 +324,7 @@ def decide(scales, tests, runs, evidence: Evidence, alpha: float, tolerance: flo
         verdict, reason, decided = Verdict.INCONCLUSIVE, "identical_too_few", evidence.final
     elif crossed or (evidence.p_value is not None and evidence.p_value <= alpha):
         verdict, reason = Verdict.BIASED, "significant" if crossed else "spread"
-    elif _futile(claim, evidence, tolerance, n) and _adjusted_smallest(scales) > FUTILITY_PROMISE:
+    elif _futile(claim, evidence, tolerance, n, scales):
         verdict, reason = Verdict.INCONCLUSIVE, "futile"
     elif not evidence.final:
         verdict, reason, decided = Verdict.INCONCLUSIVE, "undecided", False
@@ -391,15 +391,16 @@ def _bounds(scale, tested, level: float, enough: bool):
     return np.where(equal, 0.0, bound), estimate, half
 
 
-def _futile(claim: ScaleResult | None, evidence: Evidence, tolerance: float | None, n: int) -> bool:
+def _futile(claim: ScaleResult | None, evidence: Evidence, tolerance: float | None, n: int, scales) -> bool:
     """Whether a check stops for futility (see the module docstring): a look before the last, with a tolerance,
-    from FUTILITY_PASSES passes a side on, whose claim scale can't be bounded within FUTILITY_MARGIN x budget."""
-    early = max(FUTILITY_PASSES, evidence.budget // FUTILITY_SHARE) if evidence.budget is not None else 0
-    if tolerance is None or evidence.budget is None or evidence.final or n < early or claim is None:
+    from an eighth of the budget (at least FUTILITY_PASSES passes a side) on, whose claim scale can't be bounded
+    within FUTILITY_MARGIN x budget, while nothing points to a bias (FUTILITY_PROMISE)."""
+    if tolerance is None or evidence.budget is None or evidence.final or claim is None:
         return False
-    if claim.bounded == claim.tiles:
+    if n < max(FUTILITY_PASSES, evidence.budget // FUTILITY_SHARE) or claim.bounded == claim.tiles:
         return False
-    return claim.projected is None or claim.projected > FUTILITY_MARGIN * evidence.budget
+    out_of_reach = claim.projected is None or claim.projected > FUTILITY_MARGIN * evidence.budget
+    return out_of_reach and _adjusted_smallest(scales) > FUTILITY_PROMISE
 
 
 def _adjusted_smallest(scales) -> float:
