@@ -273,8 +273,8 @@ def next_step(outcome: dict[str, Any], check: bool = False) -> str:
     if reason == "futile":
         reachable = reachable_scales(outcome)
         claim = claim_scale(outcome)
-        need, budget = claim["projected"], outcome["budget"]
-        if need is not None and need <= _REACHABLE_FACTOR // 4 * budget:
+        need = claim["projected"]
+        if _reachable(need, min(outcome["n_ref"], outcome["n_test"])):
             grow = f"give it about {need} passes a side (the same command with --max-passes {need} and --resume)"
         elif need is not None:
             grow = f"no budget within reach bounds every {claim['tile']}x{claim['tile']} tile (about {need} passes)"
