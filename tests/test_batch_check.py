@@ -47,8 +47,8 @@ def check(*args, expect=None) -> subprocess.CompletedProcess:
         (
             [],
             "error: the two sides are identical by construction (same scene, build, settings and seeds): every "
-            "difference would be zero; give --set, --test-blend, --test-blender or --test-command, or --unpaired for "
-            "an A/A check",
+            "difference would be zero; give --set, --test-blend, --test-blender, --test-command or a --test- setting "
+            "such as --test-sampling-pattern, or --unpaired for an A/A check",
         ),
     ],
 )

@@ -58,7 +58,8 @@ class RunInfo:
 
     `scene` is a name for people (a file name, a built-in scene); `scene_id` is what fixes the scene's content
     (``sha256:<hex>`` of a .blend, ``builtin:<name>:<builder version>``); `settings` are the render settings that
-    change the converged image, `settings_hash` their hash together with the overrides.
+    change the converged image, `settings_hash` their hash together with the overrides; `fixed` the settings the
+    passes fix whatever the scene had (samples, denoiser, ...), by the same paths: [the scene's value, the passes'].
     """
 
     spp: int = 1
@@ -72,6 +73,7 @@ class RunInfo:
     settings: dict[str, Any] = field(default_factory=dict)
     settings_hash: str = ""
     overrides: tuple[str, ...] = ()
+    fixed: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self):
         check_int("spp", self.spp, maximum=MAX_SPP)
@@ -79,8 +81,10 @@ class RunInfo:
             value = getattr(self, name)
             if not isinstance(value, str):
                 raise WelchInputError(f"`{name}` must be a string, got {type(value).__name__} {value!r:.40}")
-        if not isinstance(self.settings, dict):
-            raise WelchInputError(f"`settings` must be a dict, got {type(self.settings).__name__}")
+        for name in ("settings", "fixed"):
+            value = getattr(self, name)
+            if not isinstance(value, dict):
+                raise WelchInputError(f"`{name}` must be a dict, got {type(value).__name__}")
         if isinstance(self.overrides, str) or not all(isinstance(o, str) for o in self.overrides):
             raise WelchInputError(f"`overrides` must be a list of strings, got {self.overrides!r:.60}")
         object.__setattr__(self, "overrides", tuple(self.overrides))

@@ -20,7 +20,7 @@ import numpy as np
 
 from .._siblings import welch_core as wc
 from ..errors import BatchError
-from ..jobs.job import DEFAULT_SAMPLING_PATTERNS, NO_GPU_MESSAGE, builtin_scene_id
+from ..jobs.job import NO_GPU_MESSAGE, builtin_scene_id
 from ..jobs.lobes import COMPONENTS, LIGHTGROUP_PREFIX, PASS_PROPERTIES, layers_from_channels
 from ..jobs.lock import process_alive
 from ..jobs.options import GPU_BACKENDS
@@ -131,8 +131,8 @@ def configure_unbiased(
     resolution : (int, int) or None
         Width and height in pixels; None keeps the scene's.
     sampling_pattern : str or None
-        Set explicitly because ``scenes.new()`` and the startup file disagree on the default; None takes the
-        first of `batch.job.DEFAULT_SAMPLING_PATTERNS` this Blender has.
+        The pattern to render with, checked to be one this Blender has; None keeps the scene's own (a built-in
+        scene has the first of `batch.job.DEFAULT_SAMPLING_PATTERNS` this Blender has).
 
     Returns
     -------
@@ -145,7 +145,7 @@ def configure_unbiased(
     changes: list[dict] = []
     _set(changes, scene.render, "render", "engine", "CYCLES")
     _set_device(changes, scene, device)
-    pattern = _sampling_pattern(scene, sampling_pattern)
+    pattern = None if sampling_pattern is None else _sampling_pattern(scene, sampling_pattern)
     for struct, path, value in fixed_settings(scene, spp, resolution, pattern):
         _set(changes, struct, path.rpartition(".")[0], path.rpartition(".")[2], value)
     if lobes:
@@ -173,9 +173,10 @@ def _enable_lobes(changes: list[dict], scene: bpy.types.Scene, lobes: tuple[str,
     _set(changes, settings, "render.image_settings", "color_depth", "32")
 
 
-def fixed_settings(scene, spp: int, resolution, pattern: str) -> list[tuple[object, str, object]]:
-    """(struct, override path, value) of every setting a pass fixes, whatever the scene had. Settings this
-    Blender does not have are left out (they differ between 3.4 and 5.0)."""
+def fixed_settings(scene, spp: int, resolution, pattern: str | None) -> list[tuple[object, str, object]]:
+    """(struct, override path, value) of every setting a pass fixes, whatever the scene had: the job's (samples,
+    the resolution and the pattern where given) and those an unbiased pass needs. Settings this Blender does not
+    have are left out (they differ between 3.4 and 5.0)."""
     render, cycles = scene.render, scene.cycles
     wanted = [
         (cycles, "cycles.samples", spp),
@@ -187,7 +188,7 @@ def fixed_settings(scene, spp: int, resolution, pattern: str) -> list[tuple[obje
         ),
         (cycles, "cycles.use_adaptive_sampling", False),
         (cycles, "cycles.time_limit", 0.0),
-        (cycles, "cycles.sampling_pattern", pattern),
+        *(((cycles, "cycles.sampling_pattern", pattern),) if pattern is not None else ()),
         # A compositor node tree changes the saved image; the sequencer could replace it.
         (render, "render.use_compositing", False),
         (render, "render.use_sequencer", False),
@@ -215,15 +216,15 @@ _OPTION_FOR = {
     "cycles.samples": "--spp",
     "render.resolution_x": "--resolution",
     "render.resolution_y": "--resolution",
-    "cycles.sampling_pattern": "--sampling-pattern",
+    "cycles.sampling_pattern": "--sampling-pattern (or --test-sampling-pattern)",
     "cycles.device": "--device",
 }
 
 
-def check_fixed_settings(scene, spp: int, resolution, overrides: list[dict]) -> None:
+def check_fixed_settings(scene, spp: int, resolution, overrides: list[dict], pattern: str | None = None) -> None:
     """Raise RenderSetupError if the overrides (as `apply_overrides` returns them) changed a setting the job
-    fixes: what is rendered must be what is recorded."""
-    pattern = scene.cycles.sampling_pattern
+    fixes (`pattern`: the sampling pattern the job gave, None where it keeps the scene's): what is rendered must
+    be what is recorded."""
     expected = {path: value for _struct, path, value in fixed_settings(scene, spp, resolution, pattern)}
     expected["cycles.device"] = scene.cycles.device
     for change in overrides:
@@ -269,25 +270,37 @@ def add_named_lightgroups(scene: bpy.types.Scene) -> list[dict]:
     return changes
 
 
-def _sampling_pattern(scene, requested: str | None) -> str:
-    """The pattern to render with: the requested one if this Blender has it, else the first default it has."""
+#: What a pass fixes of a scene only to be saved and read back, and the layers' passes: not worth a reader's note.
+_OUTPUT_ONLY = ("render.image_settings.", "render.use_persistent_data", "render.use_single_layer", "view_layers[")
+
+
+def fixed_record(scene, spp: int, resolution, pattern: str | None, changes: list[dict]) -> dict:
+    """Every setting the passes fix (`RunInfo.fixed`), by path: [the scene file's value, the passes' value], from
+    the scene as `configure_unbiased` left it and the `changes` it made; the saved file's format left out."""
+    passes = {path: jsonable(value) for _s, path, value in fixed_settings(scene, spp, resolution, pattern)}
+    passes |= {"render.engine": scene.render.engine, "cycles.device": scene.cycles.device}
+    scene_values = {c["path"]: c["old"] for c in changes}
+    return {
+        path: [scene_values.get(path, value), value]
+        for path, value in passes.items()
+        if not path.startswith(_OUTPUT_ONLY)
+    }
+
+
+def _sampling_pattern(scene, requested: str) -> str:
+    """`requested`, checked to be a pattern of this Blender (5.0 fills the items at run time: its RNA lists none,
+    so it is tried by setting it)."""
     cycles = scene.cycles
-    for candidate in [requested] if requested is not None else DEFAULT_SAMPLING_PATTERNS:
-        # 5.0 fills the items at run time (its RNA lists none), so a pattern is tried by setting it.
-        old = cycles.sampling_pattern
-        try:
-            cycles.sampling_pattern = candidate
-        except TypeError as exc:
-            if requested is not None:
-                choices = str(exc).rpartition(" not found in ")[2].strip("() \n").replace("'", "")
-                raise RenderSetupError(
-                    f"--sampling-pattern {requested} is not a pattern of Blender {bpy.app.version_string} "
-                    f"(it has {choices})"
-                ) from None
-            continue
-        cycles.sampling_pattern = old  # configure_unbiased sets (and records) it
-        return candidate
-    return cycles.sampling_pattern
+    old = cycles.sampling_pattern
+    try:
+        cycles.sampling_pattern = requested
+    except TypeError as exc:
+        choices = str(exc).rpartition(" not found in ")[2].strip("() \n").replace("'", "")
+        raise RenderSetupError(
+            f"--sampling-pattern {requested} is not a pattern of Blender {bpy.app.version_string} (it has {choices})"
+        ) from None
+    cycles.sampling_pattern = old  # configure_unbiased sets (and records) it
+    return requested
 
 
 def _set(changes: list[dict], struct, prefix: str, name: str, value) -> None:

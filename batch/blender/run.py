@@ -46,7 +46,7 @@ def prepare_scene(job: RenderJob, warn=None):
         if warn is not None and change["path"].endswith(NOTABLE_CHANGES):
             warn(f"{change['path']} was {change['old']!r} in the scene; passes render with {change['new']!r}")
     applied = apply_overrides(scene, overrides)
-    render.check_fixed_settings(scene, job.spp, job.resolution, applied)
+    render.check_fixed_settings(scene, job.spp, job.resolution, applied, job.sampling_pattern)
     if "lightgroups" in job.lobes:
         render.add_named_lightgroups(scene)
         if not render.layer_names(scene, ("lightgroups",)) and warn is not None:
@@ -70,6 +70,7 @@ def prepare_scene(job: RenderJob, warn=None):
         settings=settings,
         settings_hash=render.settings_hash({**settings, "overrides": list(job.overrides)}),
         overrides=job.overrides,
+        fixed=render.fixed_record(scene, job.spp, job.resolution, job.sampling_pattern, changes),
     )
     return scene, info
 

@@ -18,6 +18,7 @@ import numpy as np
 from mathutils import Vector
 
 from ..errors import BatchError
+from ..jobs.job import DEFAULT_SAMPLING_PATTERNS
 
 # Override paths for the corner scene's knobs (the syntax of ``batch.overrides``).
 WALL_COLOR_PATH = 'materials["Walls"].node_tree.nodes["Diffuse BSDF"].inputs["Color"].default_value'
@@ -33,6 +34,18 @@ LIGHT_SIZE = 0.5
 CYCLES_MAX_BOUNCES = 1024  # the properties' hard maximum
 LIGHT_ENERGY = 60.0  # watts; the mean pixel of ``corner`` comes out near 0.17
 MESH_LIGHT_STRENGTH = 15.0  # the emitter of ``corner_mesh_light``; the mean pixel comes out near 0.11
+
+
+def default_sampling_pattern(cycles) -> str:
+    """Set and return the first of `DEFAULT_SAMPLING_PATTERNS` this Blender has (`cycles`: a scene's Cycles
+    settings); 5.0 fills its pattern items at run time, so a pattern is tried by setting it."""
+    for pattern in DEFAULT_SAMPLING_PATTERNS:
+        try:
+            cycles.sampling_pattern = pattern
+        except TypeError:
+            continue
+        return pattern
+    return cycles.sampling_pattern
 
 
 def new_scene(name: str) -> bpy.types.Scene:
@@ -60,7 +73,8 @@ def new_scene(name: str) -> bpy.types.Scene:
         setattr(cycles, bounces, CYCLES_MAX_BOUNCES)
     cycles.use_denoising = False
     cycles.use_adaptive_sampling = False
-    # The sampling pattern is the render job's to set (scenes.new() gives 'AUTOMATIC', blue noise, in 5.0).
+    # scenes.new() gives 'AUTOMATIC' (blue noise) in 5.0, the startup file Tabulated Sobol: set, not inherited.
+    default_sampling_pattern(cycles)
     cycles.samples = 1
     for layer in scene.view_layers:
         layer.cycles.use_denoising = False

@@ -32,7 +32,7 @@ from .._siblings import welch_core as wc
 from ..decide.check import DEFAULT_MAX_PASSES
 from ..errors import BatchError
 from ..jobs import job as jobs
-from ..jobs.options import DEVICES, OPTIONS, add_options, argparse_type
+from ..jobs.options import DEVICES, OPTIONS, TEST_SIDE, add_options, argparse_type
 from ..jobs.protocol import Exit, SigtermAsInterrupt, verdict_exit
 
 DEFAULT_ALPHA = 0.01
@@ -171,6 +171,7 @@ def build_parser() -> argparse.ArgumentParser:
         defaults={"spp": 1, "tile": 16, "device": "CPU", "lobes": ()},
         helps={"lobes": "also render light components and light groups (as render --lobes); the report tests each"},
     )
+    add_options(k, TEST_SIDE, test=True)
     k.add_argument("--unpaired", action="store_true", help="disjoint seeds even on one build (an A/A check)")
     add_cluster_arguments(k)
     k.add_argument("--resume", action="store_true", help="continue a stopped check in --out")
@@ -362,8 +363,8 @@ def build_parser() -> argparse.ArgumentParser:
         else:
             m.add_argument("--test-set", dest="test_overrides", action="append", default=[], metavar="RNA.PATH=VALUE",
                            help="the change whose effect is bisected, within each build (repeatable)")  # fmt: skip
-            m.add_argument("--test-sampling-pattern", metavar="PATTERN",
-                           help="the sampling pattern whose effect is bisected, within each build")  # fmt: skip
+            add_options(m, ("sampling_pattern",), test=True,
+                        helps={"sampling_pattern": "the sampling pattern whose effect is bisected, within each build"})
         m.add_argument("--out", required=True, metavar="DIR", help="folder for the renders, reports and index.html")
 
     r = sub.add_parser(

@@ -26,6 +26,7 @@ from ..errors import BatchError
 from ..jobs import protocol
 from ..jobs.distributed import Cluster, ClusterSide, cluster
 from ..jobs.job import RenderJob
+from ..jobs.options import TEST_SIDE
 from ..jobs.seeds import MAX_PASSES, parse_seeds
 from ..jobs.side import Side
 from ..present.progress import Progress
@@ -527,6 +528,7 @@ def check_job_from_args(args) -> CheckJob:
         command=args.pass_command,
         **common,
     )
+    own = {dest: value for dest in TEST_SIDE if (value := getattr(args, f"test_{dest}", None)) is not None}
     test = RenderJob(
         out=str(out / "test.npz"),
         seeds=tuple(test_seeds),
@@ -537,12 +539,13 @@ def check_job_from_args(args) -> CheckJob:
         python=args.test_python or args.python,
         overrides=tuple(args.overrides),
         command=args.test_command or args.pass_command,
-        **common,
+        **(common | own),
     )
     if sides_identical(reference, test):
         raise BatchError(
             "the two sides are identical by construction (same scene, build, settings and seeds): every difference "
-            "would be zero; give --set, --test-blend, --test-blender or --test-command, or --unpaired for an A/A check"
+            "would be zero; give --set, --test-blend, --test-blender, --test-command or a --test- setting such as "
+            "--test-sampling-pattern, or --unpaired for an A/A check"
         )
     if not args.resume:
         for job in (reference, test):

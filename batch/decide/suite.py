@@ -28,6 +28,7 @@ A suite file::
     expect = "same"           # or "biased": a known difference, the case passes when it is found
     sampling_pattern = "TABULATED_SOBOL"
     test_sampling_pattern = "BLUE_NOISE"  # optional: the test side's pattern (a known difference between them)
+    test_spp = 4              # optional: the test side's samples per pass
     why = "what the case exercises and why its size and budget suffice"
 
 References live in a folder (``--refs``): ``<case>.npz`` (the statistics, with what rendered them) and
@@ -68,7 +69,7 @@ EXPECTATIONS = ("same", "biased")
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 _CASE_KEYS = {
     "name", "scene", "blend", "blend_scene", "set", "resolution", "spp", "tile", "passes", "seconds", "devices",
-    "tolerance", "expect", "sampling_pattern", "test_sampling_pattern", "why", "planted", "command",
+    "tolerance", "expect", "sampling_pattern", "test_sampling_pattern", "test_spp", "why", "planted", "command",
     "equivalence_tile",
 }  # fmt: skip
 
@@ -93,6 +94,7 @@ class Case:
     expect: str = "same"
     sampling_pattern: str | None = None
     test_sampling_pattern: str | None = None  # the test side's, where it differs from the reference's on purpose
+    test_spp: int | None = None  # the same for the samples of a pass
     why: str = ""
     planted: str | None = None  # a change of the case's feature that it must find (documentation, benchmarks)
     command: str | None = None  # renders a pass into an EXR instead of Cycles (batch.jobs.command)
@@ -113,7 +115,7 @@ class Case:
         return RenderJob(
             out=out,
             seeds=tuple(seeds),
-            spp=self.spp,
+            spp=(self.test_spp or self.spp) if test else self.spp,
             tile=self.tile,
             blend=self.blend,
             scene=self.scene,
@@ -235,12 +237,6 @@ def _case(entry: dict, label: str, folder: Path, problems: list[str]) -> Case | 
             if not Path(blend).is_file():
                 problems.append(f"{label}: blend file {blend} does not exist")
     values = options.from_mapping(entry, label, problems)
-    test_pattern = entry.get("test_sampling_pattern")
-    if test_pattern is not None:
-        try:
-            test_pattern = options.text(f"{label}: 'test_sampling_pattern'", test_pattern)
-        except BatchError as exc:
-            problems.append(str(exc))
     expect = entry.get("expect", "same")
     if expect not in EXPECTATIONS:
         problems.append(f"{label}: 'expect' must be 'same' or 'biased', got {expect!r}")
@@ -273,7 +269,8 @@ def _case(entry: dict, label: str, folder: Path, problems: list[str]) -> Case | 
         equivalence_tile=claim,
         expect=expect,
         sampling_pattern=values.get("sampling_pattern"),
-        test_sampling_pattern=test_pattern,
+        test_sampling_pattern=values.get("test_sampling_pattern"),
+        test_spp=values.get("test_spp"),
         why=texts["why"] or "",
         planted=texts["planted"],
         command=command,

@@ -43,8 +43,9 @@ NO_GPU_MESSAGE = "Cycles found no GPU"
 #: tiles are excluded from the test with the reason non_finite).
 ON_NAN = ("stop", "skip", "keep")
 
-#: Sampling patterns tried in order when a job asks for none: Cycles' tabulated Sobol (the startup file's
-#: pattern), else the Sobol variant an older Blender has. What was used is recorded with the run.
+#: The sampling pattern of a built-in scene, the first this Blender has: Cycles' tabulated Sobol (the startup
+#: file's pattern), else the Sobol variant an older Blender has. A scene file renders with its own pattern unless
+#: the job gives one; what was used is recorded with the run.
 DEFAULT_SAMPLING_PATTERNS = ("TABULATED_SOBOL", "SOBOL_BURLEY", "SOBOL")
 
 

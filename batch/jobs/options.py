@@ -179,8 +179,8 @@ OPTIONS = {
             "--sampling-pattern",
             "sampling_pattern",
             text,
-            "Cycles sampling pattern, set explicitly and recorded (default: TABULATED_SOBOL, or the Sobol pattern an "
-            "older Blender has); one of the values the running Blender offers",
+            "Cycles sampling pattern, one of the values the running Blender offers (default: the scene file's own; "
+            "a built-in scene's is TABULATED_SOBOL, or the Sobol pattern an older Blender has); recorded",
             metavar="PATTERN",
         ),
         Option(
@@ -263,13 +263,25 @@ def argparse_type(option: Option, flag: str | None = None) -> Callable[[str], An
     return convert
 
 
-def add_options(parser, dests: Iterable[str], defaults: dict[str, Any] | None = None, helps: dict | None = None):
+#: Options in which the test side may differ from the reference (``--test-spp``, a suite case's ``test_spp``):
+#: settings that change only how the passes are drawn, so both sides still render the same converged image.
+TEST_SIDE = ("spp", "device", "sampling_pattern")
+
+
+def add_options(
+    parser, dests: Iterable[str], defaults: dict[str, Any] | None = None, helps: dict | None = None, test=False
+):
     """Declare the options `dests` on `parser` with their flags, checks and help; `defaults` and `helps` per dest
-    (a default shows in the help)."""
+    (a default shows in the help). `test`: the test side's own (``--test-spp``, dest ``test_spp``; default
+    None: the reference side's)."""
     defaults, helps = defaults or {}, helps or {}
     for dest in dests:
         option = OPTIONS[dest]
-        kwargs: dict[str, Any] = {"dest": dest, "help": helps.get(dest, option.help)}
+        if test:
+            flag = "--test-" + option.flag.removeprefix("--")
+            text = helps.get(dest, f"the test side's {option.help.split(',')[0].split(' (')[0]} (default: the reference's)")
+            option = Option(f"test_{dest}", flag, None, option.convert, text, option.metavar or dest.upper(), option.many)
+        kwargs: dict[str, Any] = {"dest": option.dest, "help": helps.get(dest, option.help)}
         if option.metavar:
             kwargs["metavar"] = option.metavar if " " not in option.metavar else tuple(option.metavar.split())
         if dest == "resolution":
@@ -290,7 +302,9 @@ def from_mapping(entry: dict, label: str, problems: list[str]) -> dict[str, Any]
     """The options a suite case gives (by their keys), checked: a bad value is added to `problems` (naming
     `label` and the key) and left out."""
     values = {}
-    for option in OPTIONS.values():
+    test_side = [Option(f"test_{o.dest}", o.flag, f"test_{o.key}", o.convert, o.help, number=o.number)
+                 for o in OPTIONS.values() if o.dest in TEST_SIDE and o.key is not None]  # fmt: skip
+    for option in [*OPTIONS.values(), *test_side]:
         if option.key is None or option.key not in entry:
             continue
         value = entry[option.key]

@@ -60,6 +60,7 @@ def summarize(
     significant = outcome.significant
     names = side_names(ref.info, test.info, ref_name, test_name)
     image, noise = differences(ref.info, test.info)
+    fixed = fixed_notes(ref.info, test.info)
     summary = {
         "verdict": data["verdict"],
         "verdict_text": data["verdict_text"],
@@ -88,17 +89,18 @@ def summarize(
         },
         "tile_channels": c.reason_counts,
         "top_tiles": top_tiles(c, significant),
-        "notes": notes(c, outcome),
+        "notes": notes(c, outcome) + fixed[0],
         "reference": {"name": names[0], "n": ref.n, "seeds": format_seeds(ref.seeds), "info": ref.info.to_json()},
         "test_run": {"name": names[1], "n": test.n, "seeds": format_seeds(test.seeds), "info": test.info.to_json()},
         "differences": image,
         "noise_differences": noise,
+        "hidden_differences": fixed[1],
         "reference_selftest": reference_selftest(ref, outcome.alpha) if selftest else None,
         "dropped_pixels": ref.dropped_pixels,
         "check": check,
     }
     summary["warnings"] = warnings(summary)
-    summary["next_step"] = words.next_step(data, check=check is not None)
+    summary["next_step"] = words.next_step(data, check=check is not None, hidden=fixed[1])
     return summary
 
 
@@ -263,6 +265,45 @@ def differences(ref: wc.RunInfo, test: wc.RunInfo) -> tuple[list[str], list[str]
             if overrides:
                 image.append(f"overrides of the {side} side: {'; '.join(overrides)}")
     return image, noise
+
+
+#: Fixed settings a note leaves out: the view layers' own samples only matter where a layer sets them.
+_QUIET_FIXED = ("cycles.use_layer_samples",)
+
+
+def fixed_notes(ref: wc.RunInfo, test: wc.RunInfo) -> tuple[list[str], list[str]]:
+    """What the passes replaced of the scene files' own settings (`RunInfo.fixed`), as notes, and the settings in
+    which the two files differ but the passes do not ("samples: 4096 → 2 in the files, 1 in the passes"): a
+    difference the test cannot see. Built-in scenes are the tool's own: nothing of theirs is reported."""
+
+    def replaced(info: wc.RunInfo) -> str:
+        if info.scene_id.startswith("builtin:"):
+            return ""
+        return ", ".join(
+            f"{_setting_name(key)} {_setting_value(a)} → {_setting_value(b)}"
+            for key, (a, b) in sorted(info.fixed.items())
+            if a != b and key not in _QUIET_FIXED
+        )
+
+    out = []
+    mine, theirs = replaced(ref), replaced(test)
+    if mine and mine == theirs:
+        out.append(f"the passes replace settings of both scenes: {mine}")
+    else:
+        out += [f"the passes replace settings of the {side} scene: {text}"
+                for side, text in (("reference", mine), ("test", theirs)) if text]  # fmt: skip
+    hidden = []
+    for key in sorted(set(ref.fixed) & set(test.fixed)):
+        (a, rendered), (b, other) = ref.fixed[key], test.fixed[key]
+        if a != b and rendered == other and key not in _QUIET_FIXED:
+            hidden.append(
+                f"{_setting_name(key)}: {_setting_value(a)} → {_setting_value(b)} in the files, "
+                f"{_setting_value(rendered)} in the passes"
+            )
+    if hidden:
+        out.append(f"the scene files differ in settings the passes replace on both sides, so the test cannot see "
+                   f"them: {'; '.join(hidden)}")  # fmt: skip
+    return out, hidden
 
 
 def reference_selftest(ref: wc.TileStats, alpha: float) -> dict[str, Any] | None:

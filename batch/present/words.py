@@ -240,9 +240,17 @@ def method(outcome: dict[str, Any], pvalue_method: str = "exact", check: dict[st
     return text
 
 
-def next_step(outcome: dict[str, Any], check: bool = False) -> str:
-    """What to do with this verdict, in a sentence or two."""
+def next_step(outcome: dict[str, Any], check: bool = False, hidden: list[str] = ()) -> str:
+    """What to do with this verdict, in a sentence or two; `hidden`: the settings in which the scene files differ
+    but the passes do not (`batch.present.summary.fixed_notes`)."""
     reason = outcome["reason"]
+    if hidden and reason in ("bounded", "identical", "identical_too_few"):
+        names = ", ".join(dict.fromkeys(h.split(":")[0] for h in hidden))
+        return (
+            f"The passes agree, but the scene files differ in what the passes replace ({names}), a difference not "
+            "tested: compare samples, sampling patterns or devices directly (--test-spp, --test-sampling-pattern, "
+            "--test-device); a denoiser, adaptive sampling or a time limit is outside what this test can judge."
+        )
     more = (
         "run the same check again with a larger --max-passes and --resume: the looks already made keep their "
         "boundaries, and the looks past the budget spend the share of alpha kept for them"
