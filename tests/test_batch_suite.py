@@ -156,6 +156,16 @@ def test_statuses_and_exit_codes():
     assert suites.status_of(different, Verdict.BIASED) == "passed"
     assert suites.status_of(different, Verdict.NO_EVIDENCE) == "failed"  # a known difference that went away
     assert suites.status_of(same, Verdict.INCONCLUSIVE) == "inconclusive"
+    # A case that could not have found a bias of its tolerance does not pass on finding none.
+    assert suites.status_of(same, Verdict.NO_EVIDENCE, 0.132, 0.01) == "underpowered"
+    assert suites.status_of(same, Verdict.NO_EVIDENCE, None, 0.01) == "underpowered"
+    assert suites.status_of(same, Verdict.NO_EVIDENCE, 0.009, 0.01) == "passed"
+    assert suites.status_of(same, Verdict.EQUIVALENT, None, 0.01) == "passed"
+    assert suites.status_of(different, Verdict.BIASED, None, 0.01) == "passed"
+    assert suites.underpowered_text(0.132, 0.01, 8) == (
+        "not enough passes to rule out 1 %: 13.2 % could hide in a 8x8 tile"
+    )
+    assert suites.exit_code([outcome("underpowered"), outcome("passed")]) == 3
     assert suites.exit_code([outcome("passed"), outcome("skipped")]) == 0
     biased = outcome("failed", verdict="biased")
     assert suites.exit_code([outcome("inconclusive"), outcome("error"), biased]) == 1
@@ -201,6 +211,7 @@ def test_junit_xml_counts_each_kind():
 
 SMALL = """[suite]
 name = "small"
+tolerance = "30%"
 [defaults]
 resolution = [16, 16]
 tile = 8
@@ -259,6 +270,21 @@ def test_bless_records_provenance_and_refuses_a_changed_reference(blessed, tmp_p
     done = batch("suite", "bless", path, "--refs", refs, "--missing", check=0)
     assert f"walls: kept: {refs / 'walls.npz'} exists" in done.stdout and "mirror: blessed: 12 passes" in done.stdout
     assert (refs / "walls.npz").read_bytes() == stored
+
+
+@pytest.mark.slow
+def test_a_case_that_could_not_have_failed_does_not_pass(blessed, tmp_path):
+    """The same runs held to the suite's default tolerance (1 %), which 12 passes of 8x8 tiles can't rule out:
+    `underpowered`, a JUnit failure, exit code 3, the sentence saying what could hide."""
+    folder, path = blessed
+    strict = write_suite(tmp_path, SMALL.replace('tolerance = "30%"\n', ""))
+    done = batch("suite", "run", strict, "--refs", folder / "refs", "--out", tmp_path / "out", "--filter", "walls",
+                 check=3)  # fmt: skip
+    line = next(x for x in done.stdout.splitlines() if "underpowered:" in x)
+    assert re.fullmatch(r"  underpowered: not enough passes to rule out 1 %: \d+\.\d % could hide in a 8x8 tile; no "
+                        r"evidence of bias: .*", line), line  # fmt: skip
+    failure = ET.parse(tmp_path / "out" / "junit.xml").getroot().find(".//failure")
+    assert failure.attrib["type"] == "underpowered" and "not enough passes" in failure.attrib["message"]
 
 
 @pytest.mark.slow

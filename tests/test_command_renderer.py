@@ -182,7 +182,8 @@ def test_a_failing_command_is_one_line_and_keeps_the_passes_before_it(toy):
 
 def suite_file(folder: Path, passes: int = 16) -> Path:
     path = folder / "welch_toy.toml"
-    path.write_text(f'[[case]]\nname = "toy"\ncommand = "{TEMPLATE}"\ntile = 16\npasses = {passes}\n')
+    path.write_text(f'[suite]\ntolerance = "15%"\n[[case]]\nname = "toy"\ncommand = "{TEMPLATE}"\ntile = 16\n'
+                    f"passes = {passes}\n")
     return path
 
 

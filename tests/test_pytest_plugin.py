@@ -3,6 +3,7 @@ file, pytest run there with the installed package's plugin. Renders with Cycles 
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
@@ -15,6 +16,7 @@ pytestmark = pytest.mark.slow
 SUITE = """
 [suite]
 name = "smoke"
+tolerance = "10%"
 
 [[case]]
 name = "corner"
@@ -67,6 +69,8 @@ def test_cases_are_tests_blessed_once_and_a_planted_change_fails(project):
     planted = pytest_in(project, "-k", "CPU", "--welch-set", "cycles.max_bounces=0", "--junitxml", "j.xml")
     assert planted.returncode == 1
     line = next(x for x in planted.stdout.splitlines() if x.startswith("failed: biased: whole image"))
+    assert "; differences: max_bounces: 1024 → 0; overrides of the test side: cycles.max_bounces=0 (report: " in line
+    assert re.search(r"; \d+ passes; differences", line)
     report = line.rsplit("(report: ", 1)[1].rstrip(")")
     assert report == str(project / "tmp" / "welch" / "smoke" / "corner" / "CPU" / "report.html")
     assert open(report).read(15).lower() == "<!doctype html>"

@@ -1,7 +1,8 @@
 """Bias suites as pytest tests: every case of a suite file named ``welch*.toml`` under pytest's test paths is an
 item, decided against its reference as ``python -m batch suite run`` does (`batch.decide.suite`).
 
-A case passes when its verdict is what it expects, fails with the verdict sentence and the report's path, and is
+A case passes when its verdict is what it expects and it could have failed (`batch.decide.suite.status_of`), fails
+with the verdict sentence, the passes it rendered, what differed between its sides and the report's path, and is
 skipped with the reason when its device is missing; a suite file with a problem is one collection error listing
 every problem. pytest's own ``-k``, ``-x``, ``--junitxml`` and ``-ra`` work as for any test. Options:
 
@@ -42,6 +43,14 @@ def pytest_collect_file(file_path: Path, parent):
     if fnmatch.fnmatch(file_path.name, PATTERN):
         return SuiteFile.from_parent(parent, path=file_path)
     return None
+
+
+def evidence(result) -> str:
+    """What a failed case rendered and what differed between its sides, for the failure message."""
+    if result.summary is None:
+        return ""
+    differences = result.summary["differences"] + result.summary["noise_differences"]
+    return f"; {result.passes} passes" + (f"; differences: {'; '.join(differences)}" if differences else "")
 
 
 class SuiteProblem(Exception):
@@ -111,7 +120,7 @@ class CaseItem(pytest.Item):
         if result.status == "skipped":
             pytest.skip(result.message)
         if result.status != "passed":
-            raise SuiteProblem(f"{result.status}: {result.message}{report}")
+            raise SuiteProblem(f"{result.status}: {result.message}{evidence(result)}{report}")
 
     def repr_failure(self, excinfo, style=None):
         if isinstance(excinfo.value, SuiteProblem):

@@ -6,6 +6,7 @@ A suite file::
     [suite]
     name = "my renderer"      # optional; default: the file's name
     alpha = 0.01              # the false-positive rate of each case's `biased`
+    tolerance = "5%"          # the bias every case must be able to find to pass (default 1%; see below)
 
     [defaults]                # optional: any case key, for every case
     resolution = [64, 64]
@@ -23,7 +24,8 @@ A suite file::
     passes = 64               # the reference's passes, and the most the test side renders
     seconds = 60              # optional: the most render seconds of the test side
     devices = ["CPU", "OPTIX"]
-    tolerance = "2%"          # optional: stop early at `equivalent` once every tile is bounded within it
+    tolerance = "2%"          # optional: the suite's for this case, and stop early at `equivalent` once every
+                              # tile is bounded within it
     equivalence_tile = 64     # optional: ...every tile of this size (a multiple of `tile`; default `tile` itself)
     expect = "same"           # or "biased": a known difference, the case passes when it is found
     sampling_pattern = "TABULATED_SOBOL"
@@ -35,6 +37,11 @@ References live in a folder (``--refs``): ``<case>.npz`` (the statistics, with w
 ``<case>.json`` (when, how, on which seeds). A run's test side renders seeds after the reference's, so the two
 sides never share a seed; it stops at `biased` (or `equivalent` with a tolerance) or at the budget, where its
 verdict is `no evidence of bias` (`inconclusive` when too much of the image could not be tested).
+
+A case that could not have failed does not pass: an expected-same case passes on `equivalent`, or on `no evidence
+of bias` when the bias its tiles find with 80 % power (the median over its tiles) is at most its tolerance (the
+case's, else the suite's, 1 % by default); otherwise it is `underpowered` ("not enough passes to rule out 1 %: 13.2 %
+could hide in an 8x8 tile"), a failure like `inconclusive` (exit code 3).
 
 Nothing here imports bpy: the renders run in their own processes through the render-job contract.
 """
@@ -58,7 +65,7 @@ from ..jobs import command as jobs_command
 from ..jobs import options
 from ..jobs.distributed import cluster as side_cluster
 from ..jobs.job import BUILTIN_SCENES, NO_GPU_MESSAGE, RenderJob, builtin_scene_id
-from ..jobs.protocol import Exit
+from ..jobs.protocol import FAILING, Exit
 from .check import CheckJob, run_check
 
 #: The suite that ships with the tool: one minimal scene per Cycles feature, and its references.
@@ -66,6 +73,9 @@ BUILTIN = Path(__file__).with_name("suites") / "builtin.toml"
 BUILTIN_REFS = Path(__file__).with_name("suites") / "builtin-refs"
 
 EXPECTATIONS = ("same", "biased")
+
+#: The bias a passing case must be able to find, where neither the case nor the suite says: `check`'s default.
+DEFAULT_TOLERANCE = 0.01
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 _CASE_KEYS = {
     "name", "scene", "blend", "blend_scene", "set", "resolution", "spp", "tile", "passes", "seconds", "devices",
@@ -138,6 +148,7 @@ class Suite:
     name: str
     alpha: float
     cases: tuple[Case, ...]
+    tolerance: float = DEFAULT_TOLERANCE  # the bias a case without its own tolerance must be able to find
 
     def select(self, patterns: list[str] | None) -> list[Case]:
         """The cases whose names match any of the shell patterns (all without patterns)."""
@@ -172,11 +183,16 @@ def load_suite(name: str) -> Suite:
     header = data.get("suite", {})
     if not isinstance(header, dict):
         header, _ = {}, problems.append("[suite] must be a table")
-    if set(header) - {"name", "alpha"}:
-        problems.append(f"unknown key {sorted(set(header) - {'name', 'alpha'})[0]!r} in [suite]")
-    alpha = 0.01
+    if set(header) - {"name", "alpha", "tolerance"}:
+        problems.append(f"unknown key {sorted(set(header) - {'name', 'alpha', 'tolerance'})[0]!r} in [suite]")
+    alpha, tolerance = 0.01, DEFAULT_TOLERANCE
     try:
         alpha = options.probability("[suite] alpha", header.get("alpha", 0.01))
+    except BatchError as exc:
+        problems.append(str(exc))
+    try:
+        if "tolerance" in header:
+            tolerance = options.percentage("[suite] tolerance", header["tolerance"])
     except BatchError as exc:
         problems.append(str(exc))
     suite_name = header.get("name", path.stem)
@@ -205,7 +221,7 @@ def load_suite(name: str) -> Suite:
     if problems:
         count = f"{len(problems)} problems" if len(problems) > 1 else "a problem"
         raise BatchError(f"{path}: {count}, nothing rendered: " + "; ".join(problems))
-    return Suite(path, str(suite_name), alpha, tuple(cases))
+    return Suite(path, str(suite_name), alpha, tuple(cases), tolerance)
 
 
 def _case(entry: dict, label: str, folder: Path, problems: list[str]) -> Case | None:
@@ -394,7 +410,7 @@ class CaseResult:
 
     case: Case
     device: str
-    status: str  # "passed", "failed", "inconclusive", "skipped", "error"
+    status: str  # "passed", "failed", "inconclusive", "underpowered", "skipped", "error"
     verdict: str | None = None
     message: str = ""
     seconds: float = 0.0
@@ -407,24 +423,39 @@ class CaseResult:
         return f"{self.case.name} [{self.device}]"
 
 
-def status_of(case: Case, verdict: wc.Verdict) -> str:
-    """Passed when the verdict is what the case expects; a case expected to be `biased` fails when not found."""
+def status_of(
+    case: Case, verdict: wc.Verdict, detectable: float | None = None, tolerance: float | None = None
+) -> str:
+    """Passed when the verdict is what the case expects and the case could have failed: a case expected to be
+    `biased` fails when not found; given a `tolerance`, `no evidence of bias` passes only where `detectable` (the
+    bias found with 80 % power, `Outcome.min_detectable`) is at most it, else the case is `underpowered`."""
     if verdict == wc.Verdict.INCONCLUSIVE:
         return "inconclusive"
     found = verdict == wc.Verdict.BIASED
-    return "passed" if found == (case.expect == "biased") else "failed"
+    if found != (case.expect == "biased"):
+        return "failed"
+    if tolerance is not None and verdict == wc.Verdict.NO_EVIDENCE and (detectable is None or detectable > tolerance):
+        return "underpowered"
+    return "passed"
+
+
+def underpowered_text(detectable: float | None, tolerance: float, tile: int) -> str:
+    """Why a case that found nothing does not pass, in a line."""
+    hides = f"{detectable * 100:.1f} % could hide in a {tile}x{tile} tile" if detectable is not None else (
+        "no tile was bounded")  # fmt: skip
+    return f"not enough passes to rule out {tolerance * 100:g} %: {hides}"
 
 
 def exit_code(outcomes: list[CaseResult]) -> int:
     """1 when a case is `biased` where it should not be (1 means biased and nothing else), else 2 when a case could
-    not run, or when nothing ran at all (every case skipped: no device, say), else 3 when a case is inconclusive
-    or an expected difference was not found (the suite can't confirm every case), else 0 (skipped cases beside
+    not run, or when nothing ran at all (every case skipped: no device, say), else 3 when a case is inconclusive,
+    underpowered or an expected difference was not found (the suite can't confirm every case), else 0 (skipped cases beside
     passed ones do not count)."""
     if any(o.status == "failed" and o.verdict == wc.Verdict.BIASED for o in outcomes):
         return Exit.BIASED
     if any(o.status == "error" for o in outcomes) or all(o.status == "skipped" for o in outcomes):
         return Exit.USAGE
-    if any(o.status in ("inconclusive", "failed") for o in outcomes):
+    if any(o.status in FAILING for o in outcomes):
         return Exit.INCONCLUSIVE
     return Exit.OK
 
@@ -498,9 +529,14 @@ def _run_case(
         return CaseResult(case, device, status, message=str(exc), seconds=time.perf_counter() - start)
     check = summary["check"]
     message = summary["sentence"]
+    tolerance = case.tolerance if case.tolerance is not None else suite.tolerance
+    detectable = summary["outcome"]["min_detectable"]
+    status = status_of(case, verdict, detectable, tolerance)
     if case.expect == "biased":
         message += " (expected: biased)"
-    return CaseResult(case, device, status_of(case, verdict), verdict.label, message,
+    if status == "underpowered":
+        message = f"{underpowered_text(detectable, tolerance, case.tile)}; {message}"
+    return CaseResult(case, device, status, verdict.label, message,
                    seconds=check["looks"][-1]["seconds"] if check["looks"] else 0.0, passes=check["passes"],
                    folder=str(folder), summary=summary)  # fmt: skip
 
@@ -565,7 +601,7 @@ def write_outputs(suite: Suite, outcomes: list[CaseResult], out: Path, refs: Pat
         "alpha": suite.alpha,
         "exit_code": exit_code(outcomes),
         "counts": {
-            s: sum(o.status == s for o in outcomes) for s in ("passed", "failed", "inconclusive", "skipped", "error")
+            s: sum(o.status == s for o in outcomes) for s in ("passed", *FAILING, "skipped", "error")
         },  # fmt: skip
         "cases": [_outcome_record(o, out) for o in outcomes],
     }

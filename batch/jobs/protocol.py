@@ -211,6 +211,11 @@ class Exit(enum.IntEnum):
 VERDICT_EXIT = {"biased": Exit.BIASED, "equivalent": Exit.OK, "no_evidence": Exit.OK, "inconclusive": Exit.INCONCLUSIVE}
 
 
+#: The statuses of a suite case that count against the suite (a JUnit failure, exit code 3 unless a case is biased):
+#: its verdict is not the expected one, it decided nothing, or it could not have found a bias of its tolerance.
+FAILING = ("failed", "inconclusive", "underpowered")
+
+
 def verdict_exit(verdict) -> Exit:
     """The exit code of a `welch_core.Verdict` (or its label)."""
     return VERDICT_EXIT[str(verdict)]

@@ -18,12 +18,13 @@ from . import fmt
 THUMBNAIL = 96  # pixels, the longer side
 
 #: The order of the rows: what needs a look first (a stable sort: the suite's order within each).
-FIRST = ("failed", "error", "inconclusive", "passed", "skipped")
+FIRST = ("failed", "error", "inconclusive", "underpowered", "passed", "skipped")
 
 _STATUS_COLOURS = {
     "passed": "#1b7f3b",
     "failed": "#b00020",
     "inconclusive": "#a06000",
+    "underpowered": "#a06000",
     "error": "#b00020",
     "skipped": "#777",
 }
@@ -56,7 +57,7 @@ def write_dashboard(path: Path, summary: dict, outcomes, references: list[Path])
     )
     nothing_ran = all(o.status == "skipped" for o in outcomes)
     verdict = {0: "every case passed", 1: "a case failed", 2: "nothing ran: every case was skipped" if nothing_ran
-               else "a case could not run", 3: "a case is inconclusive"}  # fmt: skip
+               else "a case could not run", 3: "a case is inconclusive or underpowered"}  # fmt: skip
     page = f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>Suite {html.escape(summary["suite"])}: \
 {verdict[summary["exit_code"]]}</title>

@@ -5,6 +5,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+from ..jobs.protocol import FAILING
+
 #: Characters XML 1.0 does not allow (C0 controls but tab, newline and carriage return): a renderer's message
 #: may hold them, and one of them makes the whole file unreadable to a CI server.
 _NOT_XML = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f\ud800-\udfff\ufffe\uffff]")
@@ -17,18 +19,18 @@ def xml_text(text: str) -> str:
 
 def junit_xml(suite: str, outcomes) -> bytes:
     """JUnit XML as CI servers read it: a test case per case and device; `biased` where unexpected is a
-    failure, a case that could not run an error, a missing device a skip; inconclusive is a failure too (its
-    message says so), since the case did not pass."""
+    failure, a case that could not run an error, a missing device a skip; inconclusive and underpowered are
+    failures too (their messages say so), since the case did not pass."""
     import xml.etree.ElementTree as ET
 
-    counts = {s: sum(o.status == s for o in outcomes) for s in ("failed", "inconclusive", "error", "skipped")}
+    counts = {s: sum(o.status == s for o in outcomes) for s in (*FAILING, "error", "skipped")}
     root = ET.Element("testsuites")
     group = ET.SubElement(
         root,
         "testsuite",
         name=xml_text(suite),
         tests=str(len(outcomes)),
-        failures=str(counts["failed"] + counts["inconclusive"]),
+        failures=str(sum(counts[s] for s in FAILING)),
         errors=str(counts["error"]),
         skipped=str(counts["skipped"]),
         time=f"{sum(o.seconds for o in outcomes):.3f}",
@@ -37,7 +39,7 @@ def junit_xml(suite: str, outcomes) -> bytes:
         case = ET.SubElement(group, "testcase", classname=xml_text(f"{suite}.{o.device}"), name=xml_text(o.case.name),
                              time=f"{o.seconds:.3f}")  # fmt: skip
         message = xml_text(o.message)
-        if o.status in ("failed", "inconclusive"):
+        if o.status in FAILING:
             ET.SubElement(case, "failure", message=f"{o.verdict}: {message}", type=o.status)
         elif o.status == "error":
             ET.SubElement(case, "error", message=message, type="error")
