@@ -16,7 +16,11 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 if __name__ == "__main__":
     try:
         from batch.cli import argv_after_dashdash, main
-    except BaseException as exc:  # any failure to start is internal
+    except ModuleNotFoundError as exc:  # this Blender's Python, not the tool: Debian's blender needs python3-numpy
+        print(f"error: this Blender's Python {sys.version.split()[0]} has no module {exc.name!r}, which the tool "
+              f"needs (Debian's blender package: apt-get install python3-{exc.name})", file=sys.stderr)  # fmt: skip
+        sys.exit(2)
+    except BaseException as exc:  # any other failure to start is internal
         print(f"error: internal error: the batch tool can't start: {type(exc).__name__}: {exc}", file=sys.stderr)
         sys.exit(4)
     sys.exit(main(argv_after_dashdash(sys.argv)))

@@ -118,3 +118,26 @@ def test_cycles_34_against_cycles_50(tmp_path, scene, verdict):
             assert tile["rel_diff"] == pytest.approx(4 / math.pi - 1, abs=0.005)
     else:
         assert done.returncode == 0
+
+
+def test_a_renderer_failure_is_one_line_quoting_blenders_reason(tmp_path):
+    """A file Blender 3.4 cannot read (saved by the bpy module's 5.0), and a Blender whose Python has no numpy:
+    one line each, exit 2, Blender's or Python's own reason quoted."""
+    pytest.importorskip("bpy")
+    newer = tmp_path / "newer.blend"
+    subprocess.run([sys.executable, "-c", f"import bpy; bpy.ops.wm.save_as_mainfile(filepath={str(newer)!r})"],
+                   check=True, capture_output=True)  # fmt: skip
+    done = batch("render", newer, "--blender", BLENDER, *SMALL, "--seeds", "0:2", "--out", tmp_path / "a.npz", check=2)
+    assert done.stderr.splitlines() == [
+        f"error: the render failed: {BLENDER} exited with code 1: Failed to read blend file '{newer}', not a blend file"
+    ]
+    lacking = tmp_path / "blender-without-numpy"
+    lacking.write_text(f'#!/bin/sh\nif [ "$1" = "--version" ]; then exec {BLENDER} "$@"; fi\n'
+                       f"exec {BLENDER} --python-expr \"import sys; sys.modules['numpy'] = None\" \"$@\"\n")  # fmt: skip
+    lacking.chmod(0o755)
+    done = batch("render", "--scene", "corner", "--blender", lacking, *SMALL, "--seeds", "0:2", "--out",
+                 tmp_path / "b.npz", check=2)  # fmt: skip
+    assert len(done.stderr.splitlines()) == 1 and done.stderr.startswith(
+        "error: this Blender's Python 3.11"
+    ) and done.stderr.rstrip().endswith("has no module 'numpy', which the tool needs (Debian's blender package: "
+                                        "apt-get install python3-numpy)")  # fmt: skip

@@ -6,9 +6,12 @@ cases, with Mitsuba 3 as the other renderer where it is installed."""
 from __future__ import annotations
 
 import json
+import os
 import shutil
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -178,6 +181,30 @@ def test_a_failing_command_is_one_line_and_keeps_the_passes_before_it(toy):
     done = batch("render", "--command", "{python} stop.py {seed} {out}", "--seeds", "0:2", "--spp", 1, "--out", "s.npz",
                  cwd=toy, check=2)  # fmt: skip
     assert done.stderr.splitlines() == ["error: --command failed for seed 0 (exit code 130): no output"]
+
+
+def test_a_hung_pass_is_ended_by_sigterm_at_once_and_by_the_pass_limit(toy):
+    """A pass that never ends: SIGTERM stops the run at once (exit 130, the command's process gone); the pass limit
+    ends it with one line (exit 2)."""
+    (toy / "hang.py").write_text("import sys, time\nif int(sys.argv[1]) == 1:\n    time.sleep(1000)\n"
+                                 "import numpy as np\nimport welch_core as wc\n"
+                                 "wc.write_exr(sys.argv[2], np.ones((16, 16, 3), np.float32))\n")  # fmt: skip
+    line = [sys.executable, "-m", "batch", "render", "--command", "{python} hang.py {seed} {out}", "--seeds", "0:3",
+            "--spp", "1", "--tile", "8", "--out", "h.npz", "--checkpoint-every", "1"]  # fmt: skip
+    process = subprocess.Popen(line, cwd=toy, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(3)  # the first pass is done, the second hangs
+    start = time.monotonic()
+    process.send_signal(signal.SIGTERM)
+    _out, err = process.communicate(timeout=30)
+    assert process.returncode == 130 and time.monotonic() - start < 5, err
+    assert "Traceback" not in err and wc.load_stats(toy / "h.npz").seeds == [0]
+    hung = subprocess.run(["pgrep", "-f", "hang.py 1 "], capture_output=True)
+    assert hung.returncode == 1  # no command left running
+    env = {**os.environ, "WELCH_PASS_TIMEOUT": "1.5"}
+    done = subprocess.run([*line, "--resume"], cwd=toy, capture_output=True, text=True, env=env, timeout=60)
+    assert done.returncode == 2 and done.stderr.splitlines()[-1] == (
+        "error: --command's pass for seed 1 ran past 1.5 s and was stopped (WELCH_PASS_TIMEOUT)"
+    )
 
 
 def suite_file(folder: Path, passes: int = 16) -> Path:

@@ -150,6 +150,7 @@ def render_run(job: RenderJob, progress: Progress, requests=None) -> wc.TileStat
             limit_threads(scene)
             renderer = render.PassRenderer(scene, lobes=job.lobes)
         with renderer, StopRequest() as stop:
+            renderer.stop = stop  # a command's pass ends at once on a stop; a Cycles pass is short
             stats = _start_stats(job, lambda: _image_size(job, scene, renderer), info)
             layers = _start_layers(job, scene, stats)
             done = set(stats.seeds)

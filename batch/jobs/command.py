@@ -39,6 +39,14 @@ RENDERER = "command"
 #: The end of a failed command's output shown in the error (its last lines say why, as a rule).
 ERROR_TAIL = 600
 
+#: The longest a pass may run: this many times the slowest pass so far, and at least PASS_LIMIT_FLOOR seconds;
+#: the environment variable WELCH_PASS_TIMEOUT (seconds) sets it outright. A pass that runs past it hangs.
+PASS_LIMIT_FACTOR = 20
+PASS_LIMIT_FLOOR = 600.0
+
+#: Seconds a stopped command has to end after SIGTERM before it is killed.
+STOP_GRACE = 2.0
+
 
 def words(template: str) -> list[str]:
     """The template's words, checked: it splits like a shell line, names only `PLACEHOLDERS`, has ``{seed}``
@@ -109,6 +117,8 @@ class CommandRenderer:
         self._probed: tuple[int, object, float] | None = None  # (seed, image, seconds) rendered to learn the size
         self.replayed_seconds = 0.0  # the render seconds of the last pass `render` returned from the probe
         self._channels: list[str] | None = None  # the channel names of the first pass this process read
+        self.stop = None  # a `batch.blender.run.StopRequest`: a stop ends the command's pass at once
+        self._slowest = 0.0  # seconds of the slowest pass so far
 
     def __enter__(self) -> CommandRenderer:
         self._folder = tempfile.TemporaryDirectory(prefix="welch-command-")
@@ -118,6 +128,47 @@ class CommandRenderer:
         if self._folder is not None:
             self._folder.cleanup()
         return False
+
+    def pass_limit(self) -> tuple[float, str]:
+        """Seconds a pass may run before it is taken for hung (`PASS_LIMIT_FACTOR`, WELCH_PASS_TIMEOUT), and
+        where the number comes from."""
+        text = os.environ.get("WELCH_PASS_TIMEOUT", "").strip()
+        if text:
+            try:
+                limit = float(text)
+            except ValueError:
+                limit = 0.0
+            if not 0.0 < limit < float("inf"):
+                raise BatchError(f"WELCH_PASS_TIMEOUT must be a positive number of seconds, got {text!r}")
+            return limit, "WELCH_PASS_TIMEOUT"
+        why = f"{PASS_LIMIT_FACTOR} x the slowest pass so far, at least {PASS_LIMIT_FLOOR:.0f} s; WELCH_PASS_TIMEOUT sets it"
+        return max(PASS_LIMIT_FLOOR, PASS_LIMIT_FACTOR * self._slowest), why
+
+    def _run(self, line: list[str], seed: int) -> tuple[int, str, str]:
+        """Run one pass's command in a session of its own: (exit code, stdout, stderr). A stop of this process
+        (Ctrl-C, SIGTERM) ends it at once and raises KeyboardInterrupt; a pass past `pass_limit` is ended and
+        refused in one line."""
+        (limit, why), start = self.pass_limit(), time.monotonic()
+        try:
+            process = subprocess.Popen(line, cwd=self.cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                       errors="replace", start_new_session=True)  # fmt: skip
+        except OSError as exc:
+            raise BatchError(f"--command: can't run {line[0]!r} in {self.cwd}: {exc.strerror or exc}") from None
+        try:
+            while True:
+                try:
+                    stdout, stderr = process.communicate(timeout=0.1)
+                    self._slowest = max(self._slowest, time.monotonic() - start)
+                    return process.returncode, stdout, stderr
+                except subprocess.TimeoutExpired:
+                    pass
+                if self.stop is not None and self.stop.requested:
+                    raise KeyboardInterrupt
+                if time.monotonic() - start > limit:
+                    raise BatchError(f"--command's pass for seed {seed} ran past {limit:g} s and was stopped ({why})")
+        finally:
+            if process.poll() is None:
+                _end(process)
 
     def size(self, seed: int) -> tuple[int, int]:
         """(width, height) of the command's images, learnt by rendering the pass of `seed` (kept for `render`)."""
@@ -135,18 +186,10 @@ class CommandRenderer:
         assert self._folder is not None, "use the renderer as a context manager"
         out = os.path.join(self._folder.name, f"pass-{seed}.exr")
         line = argv(self.job.command, seed, out, self.job.spp, self.job.overrides)
-        try:
-            done = subprocess.run(line, cwd=self.cwd, capture_output=True, text=True, errors="replace")
-        except OSError as exc:
-            raise BatchError(f"--command: can't run {line[0]!r} in {self.cwd}: {exc.strerror or exc}") from None
-        if done.returncode in (-signal.SIGINT, -signal.SIGTERM, 130):
-            # A stop (Ctrl-C, a cancel) that reached the command reached this process too: its handler runs at the
-            # next instruction (the pause lets a signal still on its way arrive) and raises the interrupt here.
-            # Past it, nobody stopped the tool: the exit code is the command's own, a failure like any other.
-            time.sleep(0.05)
-        said = (done.stderr.strip() or done.stdout.strip())[-ERROR_TAIL:]
-        if done.returncode != 0:
-            raise BatchError(f"--command failed for seed {seed} (exit code {done.returncode}): "
+        code, stdout, stderr = self._run(line, seed)
+        said = (stderr.strip() or stdout.strip())[-ERROR_TAIL:]
+        if code != 0:  # the command's own exit code, 130 too: a stop of this tool ends its pass in `_run`
+            raise BatchError(f"--command failed for seed {seed} (exit code {code}): "
                              f"{' '.join(said.split()) or 'no output'}")  # fmt: skip
         if not os.path.exists(out):
             raise BatchError(f"--command exited 0 for seed {seed} without writing {{out}} ({out})")
@@ -163,3 +206,17 @@ class CommandRenderer:
             return wc.exr.colour_of(channels, out)
         finally:
             os.remove(out)
+
+
+def _end(process: subprocess.Popen) -> None:
+    """End a command's session: SIGTERM, then SIGKILL after `STOP_GRACE` seconds."""
+    for sig, wait in ((signal.SIGTERM, STOP_GRACE), (signal.SIGKILL, None)):
+        try:
+            os.killpg(process.pid, sig)
+        except (ProcessLookupError, PermissionError):
+            break
+        try:
+            process.communicate(timeout=wait)
+            return
+        except subprocess.TimeoutExpired:
+            continue

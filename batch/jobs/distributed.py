@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._siblings import welch_core as wc
-from ..errors import BatchError
+from ..errors import BatchError, RendererFailed
 from . import protocol
 from .job import RenderJob
 from .launch import THREADS_ENV
@@ -74,7 +74,7 @@ SHM_ROOM = 1 << 30  # chunk files go to memory when it has this much room (a 4K 
 CLOSE_WAIT = 5.0
 
 
-class ChunkFailed(RuntimeError):
+class ChunkFailed(RendererFailed):
     """A chunk failed again when it was run once more (its render process or its worker died twice)."""
 
 
@@ -176,15 +176,15 @@ class _Server:
         self.chunk, self.rendered = seeds, 0
         try:
             events = self.side.render_chunk(seeds, out, self._count)
-        except BatchError as exc:  # the job stopped on its input: not worth a retry
-            _remove(out)
-            return ChunkError(seeds, str(exc).removeprefix("worker side: "), worker)
-        except (RuntimeError, KeyboardInterrupt) as exc:
+        except (RendererFailed, RuntimeError, KeyboardInterrupt) as exc:  # a crash may be this machine's (memory)
             _remove(out)  # the passes saved before a failure: the chunk is rendered again, or the run stops
             raise RenderProcessDied(
                 f"the render process (PID {self.process.popen.pid}) on {worker} ended after {self.rendered} of the "
                 f"{len(seeds)} passes of seeds {format_seeds(seeds)}: {exc}"
             ) from None
+        except BatchError as exc:  # the job stopped on its input: not worth a retry
+            _remove(out)
+            return ChunkError(seeds, str(exc).removeprefix("worker side: "), worker)
         finally:
             self.chunk = ()
         try:

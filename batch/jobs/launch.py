@@ -11,6 +11,7 @@ import collections
 import functools
 import os
 import queue
+import re
 import signal
 import subprocess
 import sys
@@ -19,6 +20,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import BatchError
+
+#: A line in which Blender states why it stopped ("Error: Failed to read blend file ..."), and a Python exception's.
+_BLENDER_ERROR = re.compile(r"^Error: \S")
+_PYTHON_ERROR = re.compile(r"^[A-Za-z_.]*(Error|Exception|Interrupt): \S")
 from . import protocol
 from .job import RenderJob
 from .protocol import ChunkRequest, Exit
@@ -295,10 +300,16 @@ class JobProcess:
             pass  # all of it has ended
 
     def error_message(self) -> str:
-        """The most telling line about a failure: the job's error event, else stderr's last line, else stdout's."""
+        """The most telling line about a failure: the job's error event, else the renderer's own reason (Blender's
+        last "Error: ..." line, a Python exception's last line), else stderr's last line, else stdout's."""
         if self.last_error:
             return self.last_error
+        lines = [*self.stdout_tail, *self.stderr_tail]
+        for telling in (_BLENDER_ERROR, _PYTHON_ERROR):
+            found = [line.strip() for line in lines if telling.match(line.strip())]
+            if found:
+                return found[-1].removeprefix("Error: ")
         for tail in (self.stderr_tail, self.stdout_tail):
             if tail:
-                return tail[-1]
+                return tail[-1].removeprefix("error: ")  # the job's own one-line error, said again by the caller
         return ""

@@ -2,7 +2,7 @@
 (``render --serve``: the scene stays loaded between chunks) or on a Dask cluster (`distributed.PassPool`), its
 progress relayed, its passes counted from the statistics file it writes, and its end turned into the tool's
 outcome: `BatchError` for the job's own input, KeyboardInterrupt when it was interrupted (its checkpoint is kept),
-RuntimeError otherwise.
+`RendererFailed` (a BatchError: one line, exit 2) when the renderer failed otherwise.
 
 ``render --blender`` (a whole job in another Blender), ``check`` (both sides, chunk by chunk), ``suite`` (through
 ``check``, and ``suite bless``), the Dask workers (a chunk of given seeds at a time: `render_chunk`) and the
@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 from .._siblings import welch_core as wc
-from ..errors import BatchError
+from ..errors import BatchError, RendererFailed
 from . import protocol
 from .job import RenderJob
 from .launch import JobProcess, blender_version, bpy_version, job_command
@@ -31,6 +31,9 @@ FINISH_WAIT = 60.0
 #: Seconds a render process may take to start (load Blender and the scene) before it is taken for hung; the
 #: environment variable WELCH_START_TIMEOUT overrides it (a production scene on slow storage may need more).
 START_TIMEOUT = float(os.environ.get("WELCH_START_TIMEOUT", "900"))
+
+#: Seconds of silence at start-up after which the user is told what the run waits for.
+START_NOTICE = 15.0
 
 
 class Side:
@@ -51,6 +54,7 @@ class Side:
         self.warn = warn
         self.passes = 0  # in the statistics file
         self._started_at, self._alive = time.monotonic(), False  # since when, and whether it has said anything
+        self._noticed = False  # whether the wait at start-up was said
         self.render_seconds = 0.0  # the seconds of the passes rendered here (their own, start-up not counted)
         self.pass_seconds: list[float] = []  # each of them
         self.process: JobProcess | None = None
@@ -108,7 +112,13 @@ class Side:
         if code is not None:
             self._relay()
             self._failed(code)
-        if not self._alive and time.monotonic() - self._started_at > START_TIMEOUT:
+        waited = time.monotonic() - self._started_at
+        if not self._alive and waited > START_NOTICE and not self._noticed:
+            self._noticed = True
+            self._warn(f"waiting for {self.job.blender or self.job.python or 'the render process'} to start "
+                       f"rendering ({waited:.0f} s so far; stopped at {START_TIMEOUT:.0f} s, WELCH_START_TIMEOUT sets "
+                       "it; Ctrl-C stops it now)")  # fmt: skip
+        if not self._alive and waited > START_TIMEOUT:
             self.stop()
             who = self.job.blender or self.job.python or "the render process"
             raise BatchError(self._named(f"{who} did not start rendering within {START_TIMEOUT:.0f} s "
@@ -176,7 +186,7 @@ class Side:
         if protocol.interrupted(code):
             raise KeyboardInterrupt
         whose = f"the {self.name} side's render" if self.name else "the render"
-        raise RuntimeError(f"{whose} failed: {who} exited with code {code}: {reason}")
+        raise RendererFailed(f"{whose} failed: {who} exited with code {code}: {reason}")
 
 
 def run_job(job: RenderJob, progress, name: str | None = None) -> None:
