@@ -129,7 +129,7 @@ def draw_verdict(layout, result) -> None:
         box.label(text=line)
     tiles = result["tiles"]
     box.label(text=f"Tiles: {tiles['valid']} of {tiles['total']} valid, {tiles['used']} used")
-    box.label(text=f"Significant after correction: {tiles['significant']}")
+    box.label(text=f"Outlined (the verdict's test found them or a tile around them): {tiles['significant']}")
     box.label(text=f"Passes: {result['n_ref']} reference, {result['n_test']} test")
     for reason, count in result["excluded"].items():
         box.label(text=f"Excluded tile-channels, {reason}: {count}")
@@ -168,7 +168,10 @@ def draw_top_tiles(layout, result) -> None:
         return
     for tile in result["top_tiles"]:
         row = layout.row(align=True)
-        text = f"({tile['x']}, {tile['y']}) {tile['channel']} p {fmt.p_value(tile['pvalue'])}"
+        size = (
+            f"{tile['size']}x{tile['size']} " if tile.get("decided") else ""
+        )  # saved results of earlier versions lack it
+        text = f"{size}({tile['x']}, {tile['y']}) {tile['channel']} p {fmt.p_value(tile['pvalue'])}"
         op = row.operator("welch_bias.frame_tile", text=text, icon="ZOOM_SELECTED")
         op.row, op.col = tile["row"], tile["col"]
         interval = f"[{fmt.percent(tile['ci_low'], 1)}, {fmt.percent(tile['ci_high'], 1)}]"

@@ -71,9 +71,9 @@ def test_fixed_notes_name_what_the_passes_replace_and_what_they_hide():
     from batch.present.summary import fixed_notes
 
     def info(samples, denoise):
-        return wc.RunInfo(scene="f.blend/Scene", scene_id="sha256:0",
-                          fixed={"cycles.samples": [samples, 1], "cycles.use_denoising": [denoise, False],
-                                 "cycles.use_layer_samples": ["USE", "IGNORE"], "cycles.time_limit": [0.0, 0.0]})  # fmt: skip
+        fixed = {"cycles.samples": [samples, 1], "cycles.use_denoising": [denoise, False],
+                 "cycles.use_layer_samples": ["USE", "IGNORE"], "cycles.time_limit": [0.0, 0.0]}  # fmt: skip
+        return wc.RunInfo(scene="f.blend/Scene", scene_id="sha256:0", fixed=fixed)
 
     same, _ = fixed_notes(info(4096, True), info(4096, True))
     assert same == ["the passes replace settings of both scenes: samples 4096 → 1, use_denoising on → off"]

@@ -20,7 +20,7 @@ def test_top_tile_of_a_large_local_bias():
     )
     top = summary.top_tiles(c)[0]
     assert (top["row"], top["col"], top["x"], top["y"], top["size"]) == (5, 2, 64, 160, 32)
-    assert top["significant"] and top["trusted"]
+    assert top["significant"] and top["trusted"] and not top["decided"] and top["within"] is None
     assert top["rel_diff"] == pytest.approx(0.2, abs=0.03)
     assert 0.1 < top["ci_low"] < top["rel_diff"] < top["ci_high"] < 0.3
 
@@ -33,6 +33,9 @@ def test_top_tiles_sorted_by_pvalue():
         make_run(tile_sum_samples(rng, 30, m), range(30)), make_run(tile_sum_samples(rng, 30, m, shift), range(30, 60))
     )
     top = summary.top_tiles(c)
+    decided = top.pop(0)  # a bias of every tile: decided by a larger tile, listed first with its own interval
+    assert decided["decided"] and decided["size"] > c.tile and decided["interval"].startswith("simultaneous")
+    assert decided["pvalue"] == c.outcome.most_significant.p_value and not any(t["decided"] for t in top)
     assert len(top) == summary.TOP_TILES == 10
     p = [t["pvalue"] for t in top]
     assert p == sorted(p)
@@ -155,3 +158,23 @@ def test_a_failed_reference_selftest_is_a_warning():
     fake = {"reference_selftest": {"verdict": "biased"}}
     assert summary.warnings(fake) == ["the reference against itself (two halves) is biased: trust this with care"]
     assert summary.warnings({"reference_selftest": None}) == []
+
+
+def test_one_meaning_of_significant_a_tile_inside_a_significant_larger_one_is_not_called_significant():
+    """A small bias over a 2x2 block of tiles that no 32 px tile shows alone but the 64 px tile around them does:
+    the finest tiles are `within` it, not `significant`; the deciding 64 px tile leads the list; the counts per
+    size agree with the rows."""
+    rng = np.random.default_rng(7)
+    m = scene_means()
+    shift = np.ones_like(m)
+    shift[2:4, 2:4] = 1.012
+    c = compare(make_run(tile_sum_samples(rng, 64, m), range(64)), make_run(tile_sum_samples(rng, 64, m, shift),
+                                                                               range(64, 128)))  # fmt: skip
+    assert c.verdict.label == "biased" and c.outcome.scales[0].significant == 0
+    top = summary.top_tiles(c)
+    assert top[0]["decided"] and top[0]["size"] == c.outcome.most_significant.tile > c.tile
+    rows = top[1:]
+    assert not any(t["significant"] for t in rows)
+    inside = [t for t in rows if t["within"] is not None]
+    assert inside and all(t["within"] == top[0]["size"] or t["within"] > c.tile for t in inside)
+    assert all(t["adjusted_pvalue"] > c.alpha for t in rows)

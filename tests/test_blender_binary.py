@@ -132,8 +132,9 @@ def test_a_renderer_failure_is_one_line_quoting_blenders_reason(tmp_path):
         f"error: the render failed: {BLENDER} exited with code 1: Failed to read blend file '{newer}', not a blend file"
     ]
     lacking = tmp_path / "blender-without-numpy"
+    hide = "import sys; sys.modules['numpy'] = None"
     lacking.write_text(f'#!/bin/sh\nif [ "$1" = "--version" ]; then exec {BLENDER} "$@"; fi\n'
-                       f"exec {BLENDER} --python-expr \"import sys; sys.modules['numpy'] = None\" \"$@\"\n")  # fmt: skip
+                       f'exec {BLENDER} --python-expr "{hide}" "$@"\n')  # fmt: skip
     lacking.chmod(0o755)
     done = batch("render", "--scene", "corner", "--blender", lacking, *SMALL, "--seeds", "0:2", "--out",
                  tmp_path / "b.npz", check=2)  # fmt: skip

@@ -209,8 +209,9 @@ def test_a_hung_pass_is_ended_by_sigterm_at_once_and_by_the_pass_limit(toy):
 
 def suite_file(folder: Path, passes: int = 16) -> Path:
     path = folder / "welch_toy.toml"
-    path.write_text(f'[suite]\ntolerance = "15%"\n[[case]]\nname = "toy"\ncommand = "{TEMPLATE}"\ntile = 16\n'
-                    f"passes = {passes}\n")
+    path.write_text(
+        f'[suite]\ntolerance = "15%"\n[[case]]\nname = "toy"\ncommand = "{TEMPLATE}"\ntile = 16\npasses = {passes}\n'
+    )
     return path
 
 

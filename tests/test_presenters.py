@@ -143,3 +143,21 @@ def test_a_check_says_its_last_looks_verdict_everywhere(tmp_path):
     for name, (sentence, _text) in shown.items():
         if name != "panel":  # the panel shows its own comparison's outcome (it runs no check yet)
             assert sentence == report["sentence"], name
+
+
+def test_a_biased_headline_leads_with_the_claim_that_decided():
+    """A local bias: the tile that decided leads, the whole image's interval (which includes 0) is said to be no
+    evidence on its own, and an interval too wide to state says why instead of '[—]'."""
+    tile = {"estimate": -0.0604, "low": None, "high": None, "confidence": 0.99, "simultaneous": "every tile",
+            "tile": 128, "x": 0, "y": 0, "width": 128, "height": 128, "channel": "R", "p_value": 2.42e-6,
+            "trusted": True}  # fmt: skip
+    outcome = {"verdict_text": "biased", "reason": "significant", "n_ref": 3, "n_test": 3, "most_significant": tile,
+               "whole_image": {"estimate": -0.0786, "low": -1.0271, "high": 0.081, "confidence": 0.99}}  # fmt: skip
+    assert words.sentence(outcome) == (
+        "biased: -6.04 % (its interval over every tile needs more passes) in R of the 128x128 tile at x 0, y 0 "
+        "(p 2.42e-06); whole image -7.86 % [-102.71 %, +8.10 %], which alone does not exclude 0: the bias is local"
+    )
+    outcome["whole_image"] |= {"low": -0.09, "high": -0.06}  # the whole image agrees: it leads, as before
+    assert words.sentence(outcome).startswith(
+        "biased: whole image -7.86 % [-9.00 %, -6.00 %]; most significant -6.04 %"
+    )

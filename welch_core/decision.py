@@ -222,6 +222,8 @@ class Outcome:
     identical_needed: int  # identical passes that make identical sides `equivalent (bit-identical)`
     reason: str  # why the verdict, in a few words (machine-readable key)
     significant: np.ndarray = field(repr=False, compare=False, default=None)  # finest tiles outlined (_found_where)
+    #: per tile size, finest first: the tiles the family of `biased` found significant themselves ((ty, tx) bool)
+    found: tuple = field(repr=False, compare=False, default=())
     #: the permutation test of the family, where the pass counts differ (`welch_core.permutation`); else None
     resampling: Any = field(repr=False, compare=False, default=None)
     budget: int | None = None  # a check's passes a side (None: a fixed design)
@@ -364,6 +366,7 @@ def decide(scales, tests, runs, evidence: Evidence, alpha: float, tolerance: flo
         identical_needed=needed_identical,
         reason=reason,
         significant=significant_finest,
+        found=tuple(np.asarray(sig).any(axis=-1) for sig in evidence.significant),
         resampling=evidence.resampling,
         budget=evidence.budget,
     )

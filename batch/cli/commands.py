@@ -363,8 +363,12 @@ def build_parser() -> argparse.ArgumentParser:
         else:
             m.add_argument("--test-set", dest="test_overrides", action="append", default=[], metavar="RNA.PATH=VALUE",
                            help="the change whose effect is bisected, within each build (repeatable)")  # fmt: skip
-            add_options(m, ("sampling_pattern",), test=True,
-                        helps={"sampling_pattern": "the sampling pattern whose effect is bisected, within each build"})
+            add_options(
+                m,
+                ("sampling_pattern",),
+                test=True,
+                helps={"sampling_pattern": "the sampling pattern whose effect is bisected, within each build"},
+            )
         m.add_argument("--out", required=True, metavar="DIR", help="folder for the renders, reports and index.html")
 
     r = sub.add_parser(

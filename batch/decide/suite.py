@@ -423,9 +423,7 @@ class CaseResult:
         return f"{self.case.name} [{self.device}]"
 
 
-def status_of(
-    case: Case, verdict: wc.Verdict, detectable: float | None = None, tolerance: float | None = None
-) -> str:
+def status_of(case: Case, verdict: wc.Verdict, detectable: float | None = None, tolerance: float | None = None) -> str:
     """Passed when the verdict is what the case expects and the case could have failed: a case expected to be
     `biased` fails when not found; given a `tolerance`, `no evidence of bias` passes only where `detectable` (the
     bias found with 80 % power, `Outcome.min_detectable`) is at most it, else the case is `underpowered`."""
@@ -449,8 +447,8 @@ def underpowered_text(detectable: float | None, tolerance: float, tile: int) -> 
 def exit_code(outcomes: list[CaseResult]) -> int:
     """1 when a case is `biased` where it should not be (1 means biased and nothing else), else 2 when a case could
     not run, or when nothing ran at all (every case skipped: no device, say), else 3 when a case is inconclusive,
-    underpowered or an expected difference was not found (the suite can't confirm every case), else 0 (skipped cases beside
-    passed ones do not count)."""
+    underpowered or an expected difference was not found (the suite can't confirm every case), else 0 (skipped
+    cases beside passed ones do not count)."""
     if any(o.status == "failed" and o.verdict == wc.Verdict.BIASED for o in outcomes):
         return Exit.BIASED
     if any(o.status == "error" for o in outcomes) or all(o.status == "skipped" for o in outcomes):

@@ -141,7 +141,10 @@ class CommandRenderer:
             if not 0.0 < limit < float("inf"):
                 raise BatchError(f"WELCH_PASS_TIMEOUT must be a positive number of seconds, got {text!r}")
             return limit, "WELCH_PASS_TIMEOUT"
-        why = f"{PASS_LIMIT_FACTOR} x the slowest pass so far, at least {PASS_LIMIT_FLOOR:.0f} s; WELCH_PASS_TIMEOUT sets it"
+        why = (
+            f"{PASS_LIMIT_FACTOR} x the slowest pass so far, at least {PASS_LIMIT_FLOOR:.0f} s; WELCH_PASS_TIMEOUT "
+            "sets it"
+        )
         return max(PASS_LIMIT_FLOOR, PASS_LIMIT_FACTOR * self._slowest), why
 
     def _run(self, line: list[str], seed: int) -> tuple[int, str, str]:

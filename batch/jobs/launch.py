@@ -20,13 +20,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import BatchError
+from . import protocol
+from .job import RenderJob
+from .protocol import ChunkRequest, Exit
 
 #: A line in which Blender states why it stopped ("Error: Failed to read blend file ..."), and a Python exception's.
 _BLENDER_ERROR = re.compile(r"^Error: \S")
 _PYTHON_ERROR = re.compile(r"^[A-Za-z_.]*(Error|Exception|Interrupt): \S")
-from . import protocol
-from .job import RenderJob
-from .protocol import ChunkRequest, Exit
 
 #: The folder that holds the ``batch`` and ``welch_core`` packages (the repository or the installed extension).
 ROOT = Path(__file__).resolve().parents[2]

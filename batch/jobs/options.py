@@ -279,8 +279,12 @@ def add_options(
         option = OPTIONS[dest]
         if test:
             flag = "--test-" + option.flag.removeprefix("--")
-            text = helps.get(dest, f"the test side's {option.help.split(',')[0].split(' (')[0]} (default: the reference's)")
-            option = Option(f"test_{dest}", flag, None, option.convert, text, option.metavar or dest.upper(), option.many)
+            text = helps.get(
+                dest, f"the test side's {option.help.split(',')[0].split(' (')[0]} (default: the reference's)"
+            )
+            option = Option(
+                f"test_{dest}", flag, None, option.convert, text, option.metavar or dest.upper(), option.many
+            )
         kwargs: dict[str, Any] = {"dest": option.dest, "help": helps.get(dest, option.help)}
         if option.metavar:
             kwargs["metavar"] = option.metavar if " " not in option.metavar else tuple(option.metavar.split())

@@ -88,7 +88,7 @@ def summarize(
             "significant": int(significant.sum()),
         },
         "tile_channels": c.reason_counts,
-        "top_tiles": top_tiles(c, significant),
+        "top_tiles": top_tiles(c, outcome),
         "notes": notes(c, outcome) + fixed[0],
         "reference": {"name": names[0], "n": ref.n, "seeds": format_seeds(ref.seeds), "info": ref.info.to_json()},
         "test_run": {"name": names[1], "n": test.n, "seeds": format_seeds(test.seeds), "info": test.info.to_json()},
@@ -128,15 +128,22 @@ def _build(info: wc.RunInfo) -> str:
     return f"{version} ({info.build_hash})" if info.build_hash and info.build_hash != "Unknown" else version
 
 
-def top_tiles(c: wc.Comparison, significant: np.ndarray | None = None, count: int = TOP_TILES) -> list[dict[str, Any]]:
+def top_tiles(c: wc.Comparison, outcome: wc.Outcome | None = None, count: int = TOP_TILES) -> list[dict[str, Any]]:
     """The finest tiles with the smallest p-values, with their effect sizes (the channel with the smallest p) and
-    pointwise (1 - alpha) intervals; `significant` says which the verdict found significant (default: the
-    comparison's own), `trusted` which have normal-looking Welch samples (an untrusted tile's p is not used)."""
-    significant = c.significant if significant is None else significant
+    pointwise (1 - alpha) intervals, led by the tile that decided a `biased` verdict where it is a larger one.
+
+    One meaning of significant, the verdict's (`outcome`, default the comparison's own): `significant` says the
+    family of `biased` found the tile itself, `within` names the size of a larger tile found around it (the map
+    outlines both); `adjusted_pvalue` is the tile's p adjusted over that family (Holm within a size, Bonferroni over
+    the sizes, both sides of the interval: what a fixed design compares with alpha); `trusted` says which have
+    normal-looking Welch samples (an untrusted tile's p is not used)."""
+    outcome = outcome or c.outcome
+    found = outcome.found or (c.significant,)
     flat = np.where(np.isfinite(c.tile_pvalues), c.tile_pvalues, np.inf).ravel()
     order = np.argsort(flat, kind="stable")[: min(count, c.n_valid)]
     names = "RGB" if c.pvalues.shape[-1] == 3 else None
-    tiles = []
+    family = 2 * max(len(c.scales), 1)
+    tiles = [] if (decided := _deciding_tile(c, outcome)) is None else [decided]
     for index in order:
         row, col = np.unravel_index(index, c.tile_pvalues.shape)
         ch = int(np.nanargmin(c.pvalues[row, col]))
@@ -151,9 +158,11 @@ def top_tiles(c: wc.Comparison, significant: np.ndarray | None = None, count: in
                 "height": h,
                 "size": c.tile,
                 "pvalue": _num(c.tile_pvalues[row, col]),
-                "adjusted_pvalue": _num(c.global_test.adjusted[row, col]),
+                "adjusted_pvalue": _num(min(1.0, family * c.global_test.adjusted[row, col])),
                 "qvalue": _num(c.qvalues[row, col]),
-                "significant": bool(significant[row, col]),
+                "significant": bool(found[0][row, col]),
+                "within": None if found[0][row, col] else _within(c, found, x, y),
+                "decided": False,
                 "trusted": bool(c.trusted[row, col]),
                 "channel": names[ch] if names else ch,
                 "rel_diff": _num(c.effect.rel_diff[row, col, ch]),
@@ -164,6 +173,45 @@ def top_tiles(c: wc.Comparison, significant: np.ndarray | None = None, count: in
             }
         )
     return tiles
+
+
+def _within(c: wc.Comparison, found, x: int, y: int) -> int | None:
+    """The smallest larger tile size whose tile around pixel (x, y) the verdict found significant, or None."""
+    for scale, mask in zip(c.scales[1:], found[1:], strict=False):
+        row, col = y // scale.tile, x // scale.tile
+        if row < mask.shape[0] and col < mask.shape[1] and mask[row, col]:
+            return scale.tile
+    return None
+
+
+def _deciding_tile(c: wc.Comparison, outcome: wc.Outcome) -> dict[str, Any] | None:
+    """The row of the tile that decided `biased` where it is larger than the finest (the finest ones are listed
+    anyway): its interval is the simultaneous one the verdict states."""
+    top = outcome.most_significant
+    if outcome.verdict != wc.Verdict.BIASED or top is None or top.tile is None or top.tile == c.tile:
+        return None
+    return {
+        "row": top.y // c.tile,
+        "col": top.x // c.tile,
+        "x": top.x,
+        "y": top.y,
+        "width": top.width,
+        "height": top.height,
+        "size": top.tile,
+        "pvalue": top.p_value,
+        "adjusted_pvalue": None,
+        "qvalue": None,
+        "significant": True,
+        "within": None,
+        "decided": True,
+        "trusted": top.trusted,
+        "channel": top.channel,
+        "rel_diff": top.estimate,
+        "ci_low": top.low,
+        "ci_high": top.high,
+        "interval": f"simultaneous {top.confidence:.0%}",
+        "min_detectable": None,
+    }
 
 
 def _box(c: wc.Comparison, row: int, col: int) -> tuple[int, int, int, int]:

@@ -58,6 +58,24 @@ def deterministic(count: int, test: str) -> str:
     return f"{count} tile-channels are constant on both sides but differ"
 
 
+def _biased_claim(outcome: dict[str, Any], text: str, whole: str | None) -> list[str]:
+    """A `biased` verdict's parts: the whole image first where its interval agrees (excludes 0), else the tile that
+    decided first and the whole image said to be no evidence on its own; an interval too wide to state said so."""
+    top, image = outcome["most_significant"], outcome.get("whole_image") or {}
+    agrees = image.get("low") is not None and (image["low"] > 0 or image["high"] < 0)
+    decided = None
+    if top is not None:
+        interval = (
+            fmt.difference(top)
+            if top["low"] is not None
+            else f"{fmt.percent(top['estimate'])} (its interval over every tile needs more passes)"
+        )
+        decided = f"{interval} in {where(top)} (p {fmt.p_value(top['p_value'])})"
+    if agrees or decided is None:
+        return [f"{text}: {whole}" if whole else text] + ([f"most significant {decided}"] if decided else [])
+    return [f"{text}: {decided}"] + ([f"{whole}, which alone does not exclude 0: the bias is local"] if whole else [])
+
+
 def sentence(outcome: dict[str, Any]) -> str:
     """The verdict in one sentence, its own word first: what it claims, at which scale, with its numbers."""
     text, reason = outcome["verdict_text"], outcome["reason"]
@@ -87,11 +105,7 @@ def sentence(outcome: dict[str, Any]) -> str:
                 "not ruled out"
             )
     elif reason == "significant":
-        top = outcome["most_significant"]
-        claim = f"{text}: {whole}" if whole else text
-        parts.append(claim)
-        if top is not None:
-            parts.append(f"most significant {fmt.difference(top)} in {where(top)} (p {fmt.p_value(top['p_value'])})")
+        parts += _biased_claim(outcome, text, whole)
         whole = None
     elif reason == "spread":
         parts.append(f"{text}: a difference spread over many tiles (too many small p-values)")
