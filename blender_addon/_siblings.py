@@ -21,12 +21,13 @@ ADDON_MODULE = __package__.rpartition(".")[0] or __package__
 
 
 def presenting():
-    """The summary of a comparison (batch.present.summary), imported when a result is made."""
+    """A comparison's way to people (batch.present.pipeline: the assessment, its summary), imported when a
+    result is made."""
     try:
-        from ..batch.present import summary
+        from ..batch.present import pipeline
     except ImportError:
-        from batch.present import summary
-    return summary
+        from batch.present import pipeline
+    return pipeline
 
 
 def checking():

@@ -12,7 +12,7 @@ from bpy.app.handlers import persistent
 from bpy.props import BoolProperty, IntProperty, StringProperty
 
 from . import checks, overlay, results, runner, session
-from ._siblings import checking, errors, fmt, welch_core
+from ._siblings import checking, errors, fmt, presenting, welch_core
 from .state import current
 
 TIMER_SECONDS = 0.25
@@ -20,9 +20,9 @@ REDRAW_AREAS = {"PROPERTIES", "IMAGE_EDITOR"}
 
 
 def compare_and_show(context, reference_path: str, test_path: str, alpha: float) -> dict:
-    comparison, reference, test, layers = results.compare_files(reference_path, test_path, alpha)
+    assessment, reference, test = presenting().assess_files(reference_path, test_path, alpha)
     sources = {"reference": reference_path, "test": test_path}
-    summary = results.store(comparison, reference, test, sources, layers)
+    summary = results.store(assessment, reference, test, sources)
     show(context)
     return summary
 
@@ -39,10 +39,9 @@ def conclude_check(context, run: runner.CheckRun) -> dict:
     result shown: the verdict and numbers of its final look, the map of its final passes."""
     look, reference, test = run.result
     check, _ = checking()
-    report, comparison = check.report_check(run.check, look, reference, test)
-    layers = results.layer_comparisons(run.job.reference.out, run.job.test.out, comparison)
+    report, assessment = check.report_check(run.check, look, reference, test)
     sources = {"reference": run.job.reference.out, "test": run.job.test.out}
-    summary = results.store(comparison, reference, test, sources, layers, outcome=look.outcome, report=report)
+    summary = results.store(assessment, reference, test, sources, report=report)
     image = results.refresh(context)
     results.show_in_image_editor(context, image, sidebar=True)  # the result's place: the editor's sidebar
     results.save_with_file(context.scene, current.run.key)
@@ -55,9 +54,11 @@ def show_look(context, run: runner.CheckRun) -> None:
     if taken is None:
         return
     look, reference, test = taken
-    comparison = welch_core.compare(reference, test, run.job.alpha, tolerance=run.job.tolerance)
+    check, _ = checking()
     sources = {"reference": run.job.reference.out, "test": run.job.test.out}
-    results.store(comparison, reference, test, sources, outcome=look.outcome)
+    comparison = check.look_comparison(run.job, reference, test)
+    assessment = presenting().assess(comparison, reference, test, names=tuple(sources.values()), outcome=look.outcome)
+    results.store(assessment, reference, test, sources)
     show(context)
 
 

@@ -24,31 +24,6 @@ TOP_TILES_SHOWN = 5
 DIFFERENCES_SHOWN = 8
 
 
-def _summary_module():
-    return presenting()
-
-
-def compare_files(reference_path: str, test_path: str, alpha: float):
-    """Load two statistics files and compare them, and each layer both have (light components, light groups:
-    ``render --lobes``); welch_core's errors carry one-line messages."""
-    reference = welch_core.load_stats(reference_path)
-    test = welch_core.load_stats(test_path)
-    comparison = welch_core.compare(reference, test, alpha=alpha)
-    return comparison, reference, test, layer_comparisons(reference_path, test_path, comparison)
-
-
-def layer_comparisons(reference_path: str, test_path: str, comparison) -> dict:
-    """The comparison of each layer both statistics files have (light components, light groups), by name, with
-    the image's alpha and test."""
-    ref_layers = welch_core.load_layers(reference_path, pixels=False)
-    test_layers = welch_core.load_layers(test_path, pixels=False)
-    return {
-        name: welch_core.compare(layer, test_layers[name], alpha=comparison.alpha, test_kind=comparison.test)
-        for name, layer in ref_layers.items()
-        if name in test_layers
-    }
-
-
 def shown_comparison(settings):
     """The comparison the map shows: the image's, or the chosen layer's."""
     return current.layers.get(settings.component, current.comparison)
@@ -69,16 +44,11 @@ def histogram_bars(pvalues, bins: int = HISTOGRAM_BINS) -> tuple[list[dict], flo
     return bars, float(expected)
 
 
-def summarize(comparison, reference, test, sources: dict[str, str], outcome=None, report=None) -> dict:
+def summarize(assessment, sources: dict[str, str], report=None) -> dict:
     """Everything the panel shows, computed once: the command line's summary (notes and warnings included; a
-    check's report as written, or the summary with a look's `outcome`) and the panel's histogram bars, verdict
-    title and icon."""
-    if report is not None:
-        summary = dict(report)
-    else:
-        summary = _summary_module().summarize(comparison, reference, test, sources["reference"], sources["test"],
-                                              outcome=outcome)  # fmt: skip
-    decided = outcome or comparison.outcome
+    check's `report` as written) and the panel's histogram bars, verdict title and icon."""
+    summary = dict(report if report is not None else assessment.summary)
+    decided, comparison = assessment.outcome, assessment.comparison
     verdict = welch_core.Verdict(summary["verdict"])
     bars, expected = histogram_bars(comparison.tile_pvalues[comparison.used])
     title, icon = verdict.title + (" (Bit-Identical)" if decided.identical else ""), VERDICT_ICONS[verdict]
@@ -87,7 +57,7 @@ def summarize(comparison, reference, test, sources: dict[str, str], outcome=None
         summary["sentence"] = "so far: " + summary["sentence"].partition(": ")[2]
     summary.update(
         verdict_title=title,
-        design=_summary_module().design_line(summary),
+        design=presenting().summaries.design_line(summary),
         verdict_icon=icon,
         histogram=bars,
         histogram_expected=expected,
@@ -283,16 +253,20 @@ def restore_from_file(scene) -> bool:
     return True
 
 
-def store(comparison, reference, test, sources: dict[str, str], layers=None, outcome=None, report=None) -> dict:
-    """Cache a new comparison (and its layers') for the panels and the display settings; a check's verdict is
-    its look's `outcome` (or its finished `report`), the comparison only draws the map."""
-    current.comparison, current.stats, current.highlight = comparison, (reference, test), None
-    current.significant = (outcome or comparison.outcome).significant
-    current.layers = dict(layers or {})
-    current.result = summarize(comparison, reference, test, sources, outcome=outcome, report=report)
+def store(assessment, reference, test, sources: dict[str, str], report=None) -> dict:
+    """Cache a new assessment (`batch.present.pipeline.Assessment`: its comparison and its layers') for the
+    panels and the display settings; a finished check's `report` is what the panel says, the comparison only
+    draws the map. The layers' verdicts are the report's (at the layers' alpha), never decided here."""
+    current.comparison, current.stats, current.highlight = assessment.comparison, (reference, test), None
+    current.significant = assessment.outcome.significant
+    current.layers = dict(assessment.layers)
+    current.result = summarize(assessment, sources, report)
+    rows = (current.result.get("layers") or {}).get("layers", [])
     current.result["layers"] = [
-        {"name": name, "verdict": c.verdict.label, "title": c.verdict.title} for name, c in current.layers.items()
-    ]
+        {"name": row["name"], "verdict": row["verdict"],
+         "title": "No Light" if row["verdict"] == "empty" else welch_core.Verdict(row["verdict"]).title}
+        for row in rows
+    ]  # fmt: skip
     return current.result
 
 

@@ -14,6 +14,7 @@ bpy = pytest.importorskip("bpy")
 
 import blender_addon  # noqa: E402
 import welch_core  # noqa: E402
+from batch.present.pipeline import assess  # noqa: E402
 from blender_addon import overlay, results, ui  # noqa: E402
 from blender_addon.state import current as state  # noqa: E402
 
@@ -147,7 +148,7 @@ def test_the_overlay_covers_renders_of_the_compared_shape_only():
 
 def test_display_settings_rebuild_the_vertices_at_once(settings, tmp_path):
     comparison, reference, test = biased_comparison()
-    results.store(comparison, reference, test, {"reference": "r.npz", "test": "t.npz"})
+    results.store(assess(comparison, reference, test), reference, test, {"reference": "r.npz", "test": "t.npz"})
     results.refresh(bpy.context)
     geometry = state.overlay
     assert isinstance(geometry, overlay.Geometry) and state.overlay_batches is None
@@ -176,7 +177,7 @@ def test_the_draw_handler_lives_while_the_addon_is_registered():
 
 def test_a_failing_draw_is_reported_once_and_shown_in_the_panel(settings, capsys):
     comparison, reference, test = biased_comparison()
-    results.store(comparison, reference, test, {"reference": "r.npz", "test": "t.npz"})
+    results.store(assess(comparison, reference, test), reference, test, {"reference": "r.npz", "test": "t.npz"})
     results.refresh(bpy.context)
     overlay.draw()  # no Image Editor in the context: nothing to do
     assert state.overlay_error == ""

@@ -17,7 +17,7 @@ from batch.decide import suite as suites
 from batch.present import fmt, words
 from batch.present.dashboard import write_dashboard
 from batch.present.junit import junit_xml
-from batch.present.pipeline import lines, present
+from batch.present.pipeline import assess, lines, present
 from batch.present.summary import check_record
 
 
@@ -89,7 +89,9 @@ def through_every_presenter(tmp_path, comparison, ref, test, report):
     bpy = pytest.importorskip("bpy", reason="the panel's text needs the bpy module")  # noqa: F841
     from blender_addon import results, ui
 
-    panel = results.summarize(comparison, ref, test, {"reference": "ref.npz", "test": "test.npz"})
+    names = ("ref.npz", "test.npz")
+    sources = {"reference": names[0], "test": names[1]}
+    panel = results.summarize(assess(comparison, ref, test, names=names), sources)
     layout = Layout()
     ui.draw_verdict(layout, panel)
     wrapped = len(textwrap.wrap(panel["sentence"], ui.SENTENCE_WIDTH))

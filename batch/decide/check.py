@@ -457,17 +457,24 @@ def run_check(job: CheckJob, progress, where: Cluster | None = None) -> tuple[wc
 
 
 def report_check(check: Check, look: wc.Look, ref: wc.TileStats, test: wc.TileStats):
-    """Write the report of a check's final look into its folder: (report.json's content, the comparison of the
-    final passes that the map shows). `run_check` and the Blender add-on both end a check here."""
-    from ..present.pipeline import present
+    """Write the report of a check's final look into its folder: (report.json's content, its
+    `batch.present.pipeline.Assessment`: the comparison of the final passes that the map shows, the layers').
+    `run_check` and the Blender add-on both end a check here."""
+    from ..present.pipeline import assess, write
     from ..present.summary import check_record
 
     job = check.job
-    comparison = wc.compare(ref, test, job.alpha, tolerance=job.tolerance)
     layers = (wc.load_layers(job.reference.out, pixels=False), wc.load_layers(job.test.out, pixels=False))
     early = (check.plan.early, wc.looks.EARLY_PASSES)
     record = check_record(job, check.looks, check.plan.max_passes, look, early)
-    return present(job.out, comparison, ref, test, outcome=look.outcome, check=record, layers=layers), comparison
+    assessment = assess(look_comparison(job, ref, test), ref, test, outcome=look.outcome, check=record, layers=layers)
+    return write(job.out, assessment, ref, test), assessment
+
+
+def look_comparison(job: CheckJob, ref: wc.TileStats, test: wc.TileStats) -> wc.Comparison:
+    """The fixed-design comparison of a look's passes: what its map draws (descriptive; the look's own outcome is
+    the verdict)."""
+    return wc.compare(ref, test, job.alpha, tolerance=job.tolerance)
 
 
 #: Seeds a side may use under a time budget (the pass budget is fixed once the speed is known).

@@ -1,15 +1,59 @@
 """A comparison's way to people, written once: its summary (`batch.summary`), the layers tested beside it, the
 report (`batch.report`) and the lines the command line prints. `compare`, `selftest`, `check`, `demo`, the suites
-and the Blender add-on all go through `present`; none of them summarises or reports a comparison itself.
+and the Blender add-on all go through `assess` (and `present`, which also writes the report); none of them
+summarises, reports or decides a comparison itself.
 """
 
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 from typing import Any
 
 from .._siblings import welch_core as wc
 from . import summary as summaries
+
+
+@dataclass(frozen=True)
+class Assessment:
+    """A comparison ready for people, nothing left to decide: report.json's content without its file list (the
+    verdict is `outcome`'s), the comparison whose maps are drawn, and each layer's comparison at the layers'
+    alpha (the rows of ``summary["layers"]``)."""
+
+    summary: dict[str, Any]
+    comparison: wc.Comparison
+    outcome: wc.Outcome
+    layers: dict[str, wc.Comparison]
+
+
+def assess(
+    comparison: wc.Comparison,
+    ref: wc.TileStats,
+    test: wc.TileStats,
+    *,
+    names: tuple[str | None, str | None] = (None, None),
+    outcome: wc.Outcome | None = None,
+    check: dict[str, Any] | None = None,
+    layers: tuple[dict, dict] | None = None,
+    selftest: bool = True,
+) -> Assessment:
+    """Summarise `comparison` (its own outcome, or the given `outcome` of a check's last look with the check's
+    record) and test the `layers` both runs have (light components and light groups: the reference's and the
+    test's by name)."""
+    summary = summaries.summarize(comparison, ref, test, *names, selftest=selftest, outcome=outcome, check=check)
+    tested = summaries.layers_summary(comparison, ref, test, *layers, after_looks=check is not None) if layers else None
+    if tested is not None:
+        summary["layers"] = tested[0]
+    return Assessment(summary, comparison, outcome or comparison.outcome, tested[1] if tested else {})
+
+
+def write(out_dir: str | os.PathLike, assessment: Assessment, ref, test, previews=None, full_maps: bool = False):
+    """Write the report of `assessment` into `out_dir`; returns report.json's content."""
+    from .report import write_report
+
+    a = assessment
+    return write_report(out_dir, a.summary, a.comparison, ref, test, full_maps, previews, a.layers,
+                        a.outcome.significant)  # fmt: skip
 
 
 def present(
@@ -26,31 +70,37 @@ def present(
     full_maps: bool = False,
     selftest: bool = True,
 ) -> dict[str, Any]:
-    """Summarise `comparison` (its own outcome, or the given `outcome` of a check's last look with the check's
-    record), test the `layers` both runs have (light components and light groups: the reference's and the test's
-    by name), and write the report into `out_dir`. Returns report.json's content."""
-    from .report import write_report
+    """`assess` and `write` in one: the report of `comparison` in `out_dir`. Returns report.json's content."""
+    assessment = assess(comparison, ref, test, names=names, outcome=outcome, check=check, layers=layers,
+                        selftest=selftest)  # fmt: skip
+    return write(out_dir, assessment, ref, test, previews, full_maps)
 
-    summary = summaries.summarize(comparison, ref, test, *names, selftest=selftest, outcome=outcome, check=check)
-    tested = summaries.layers_summary(comparison, ref, test, *layers, after_looks=check is not None) if layers else None
-    if tested is not None:
-        summary["layers"] = tested[0]
-    significant = (outcome or comparison.outcome).significant
-    layer_results = tested[1] if tested else None
-    return write_report(out_dir, summary, comparison, ref, test, full_maps, previews, layer_results, significant)
+
+def _load(ref_path: str, test_path: str, pixels: bool):
+    """Both statistics files (their pixel sums where asked for) and both files' layers."""
+    ref, test = (wc.load_stats(path, pixels=pixels) for path in (ref_path, test_path))
+    return ref, test, (wc.load_layers(ref_path, pixels=False), wc.load_layers(test_path, pixels=False))
 
 
 def compare_files(ref_path: str, test_path: str, out_dir: str, *, alpha: float = 0.01, kind: str = "auto",
                   pvalue_method: str = "exact", tile: int | None = None, tolerance: float | None = None,
                   equivalence_tile: int | None = None, full_maps: bool = False) -> dict[str, Any]:  # fmt: skip
     """Load two statistics files, compare them and their layers, and report into `out_dir` (the `compare`
-    command and the add-on's statistics files). The pixel sums are read only where full-resolution maps are
-    asked for; the page needs the stored previews alone."""
-    ref, test = (wc.load_stats(path, pixels=full_maps) for path in (ref_path, test_path))
+    command). The pixel sums are read only where full-resolution maps are asked for; the page needs the stored
+    previews alone."""
+    ref, test, layers = _load(ref_path, test_path, full_maps)
     previews = None if full_maps else (wc.load_preview(ref_path), wc.load_preview(test_path))
     comparison = wc.compare(ref, test, alpha, kind, pvalue_method, tile, tolerance, equivalence_tile)
-    layers = (wc.load_layers(ref_path, pixels=False), wc.load_layers(test_path, pixels=False))
     return present(out_dir, comparison, ref, test, layers=layers, previews=previews, full_maps=full_maps)
+
+
+def assess_files(ref_path: str, test_path: str, alpha: float) -> tuple[Assessment, wc.TileStats, wc.TileStats]:
+    """Load two statistics files with their pixel sums (a map over the mean render) and assess them and their
+    layers as `compare` does, the sides named by their paths, writing nothing (the Blender add-on's statistics
+    files)."""
+    ref, test, layers = _load(ref_path, test_path, True)
+    comparison = wc.compare(ref, test, alpha)
+    return assess(comparison, ref, test, names=(ref_path, test_path), layers=layers), ref, test
 
 
 def lines(report: dict[str, Any], out_dir: str | os.PathLike) -> list[str]:
