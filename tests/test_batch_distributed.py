@@ -399,6 +399,24 @@ def test_ctrl_c_keeps_what_arrived_and_resume_completes_the_run(reference, clust
 
 
 @pytest.mark.slow
+def test_ctrl_c_at_a_terminal_stops_a_workers_run_without_a_traceback(tmp_path):
+    """Ctrl-C reaches the whole process group (the tool, its Dask workers, their render processes): exit 130, one
+    line, what was rendered kept; no worker prints the traceback of its own interrupt."""
+    line = [sys.executable, "-m", "batch", "render", "--scene", "corner", "--resolution", "64", "64", "--seeds",
+            "0:3000", "--spp", "1", "--workers", "2", "--out", str(tmp_path / "w.npz")]  # fmt: skip
+    process = subprocess.Popen(line, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    deadline = time.monotonic() + 120
+    while not (tmp_path / "w.npz").exists() and time.monotonic() < deadline:  # a chunk has arrived
+        time.sleep(0.2)
+    os.killpg(process.pid, signal.SIGINT)
+    _out, err = process.communicate(timeout=120)
+    assert process.returncode == 130, err
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
+    assert err.splitlines()[-1] == "interrupted: the statistics written so far are kept (continue with --resume)"
+    assert wc.load_stats(tmp_path / "w.npz", pixels=False).n > 0
+
+
+@pytest.mark.slow
 def test_a_blend_a_worker_cannot_open_stops_the_run_naming_the_worker(cluster, tmp_path):
     job = make_job(tmp_path / "missing.npz", scene=None, blend=str(tmp_path / "not-on-this-worker.blend"))
     with pytest.raises(BatchError, match=r"worker tcp://.*not-on-this-worker\.blend"):

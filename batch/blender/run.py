@@ -269,6 +269,8 @@ class StopRequest:
 
     def __enter__(self) -> StopRequest:
         for signum in self.SIGNALS:
+            if signal.getsignal(signum) == signal.SIG_IGN:  # told to ignore it (a Dask worker's render): it does
+                continue
             try:
                 self._old[signum] = signal.signal(signum, self._note)
             except ValueError:  # not the main thread: leave signals alone

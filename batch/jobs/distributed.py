@@ -160,6 +160,7 @@ class _Server:
         self.chunk: tuple[int, ...] = ()
         self.rendered = 0
         self._chunks = 0
+        self.closed = False  # ended by `close`: a chunk it was rendering is not a failure
 
     def alive(self) -> bool:
         return self.process.popen.poll() is None
@@ -178,6 +179,8 @@ class _Server:
             events = self.side.render_chunk(seeds, out, self._count)
         except (RendererFailed, RuntimeError, KeyboardInterrupt) as exc:  # a crash may be this machine's (memory)
             _remove(out)  # the passes saved before a failure: the chunk is rendered again, or the run stops
+            if self.closed:  # the pool ended it (a cancel, Ctrl-C): nobody waits for the chunk, nothing to log
+                return ChunkError(seeds, "the pool was closed", worker)
             raise RenderProcessDied(
                 f"the render process (PID {self.process.popen.pid}) on {worker} ended after {self.rendered} of the "
                 f"{len(seeds)} passes of seeds {format_seeds(seeds)}: {exc}"
@@ -199,6 +202,7 @@ class _Server:
     def close(self, kill: bool = False, wait: float = CLOSE_WAIT) -> None:
         """End the process and remove its folder. With `kill` it gets SIGTERM (it stops after its current pass);
         else its requests end (it exits once idle). Killed if it has not ended after `wait` seconds."""
+        self.closed = True
         if kill and self.alive():
             self.process.signal(signal.SIGTERM)
         self.process.close_requests()
@@ -356,7 +360,33 @@ def local_cluster(workers: int):
         dashboard_address=None,  # no port to collide with; a cluster of one's own has its dashboard
         silence_logs=logging.ERROR,  # a render process's death is still logged (an error), not cancellations
         scheduler_kwargs={"allowed_failures": RETRIES},
+        preload=[__name__],  # `dask_setup` in each worker process
     )
+
+
+def dask_setup(worker) -> None:
+    """Run by each worker process of a `local_cluster` as it starts. Ctrl-C at a terminal reaches every process
+    of its group; the client stops the run, keeps what was rendered and closes the cluster, so a worker ignores
+    it instead of printing the traceback of its own interrupt, and does not log that the scheduler (which lives
+    in the client's process) has gone: a local cluster's scheduler only goes with the client."""
+    try:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the process's main thread: leave it
+        pass
+    logging.getLogger("distributed").addFilter(_scheduler_gone_filter)
+    for name in list(logging.root.manager.loggerDict):
+        if name.startswith("distributed."):
+            logging.getLogger(name).addFilter(_scheduler_gone_filter)
+
+
+def _scheduler_gone_filter(record: logging.LogRecord) -> bool:
+    """False for a log record about a closed connection (the scheduler gone)."""
+    error = record.exc_info[1] if record.exc_info else None
+    while error is not None:
+        if type(error).__name__ in ("CommClosedError", "StreamClosedError"):
+            return False
+        error = error.__cause__ or error.__context__
+    return "heartbeat" not in record.getMessage().lower()
 
 
 def default_chunk(passes: int, parallelism: int) -> int:
@@ -527,7 +557,18 @@ def cluster(workers: int | None, scheduler: str | None, work: int | None = None)
         return
     workers = min(workers, work) if work else workers  # a process a pass at most: 1000 workers for 4 passes start 4
     with local_cluster(workers) as local:
-        yield Cluster(local.scheduler_address, local_threads(workers))
+        try:
+            yield Cluster(local.scheduler_address, local_threads(workers))
+        except KeyboardInterrupt:
+            _quiet()  # the scheduler here logs the tasks the shutdown cancels: not news to whoever pressed Ctrl-C
+            raise
+
+
+def _quiet() -> None:
+    """Silence Dask's loggers in this process (the local cluster's scheduler and nannies), for a shutdown."""
+    for name in list(logging.root.manager.loggerDict):
+        if name == "distributed" or name.startswith("distributed."):
+            logging.getLogger(name).setLevel(logging.CRITICAL + 1)
 
 
 class ClusterSide(Side):
