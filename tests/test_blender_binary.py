@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import shutil
 import subprocess
 import sys
@@ -142,3 +143,24 @@ def test_a_renderer_failure_is_one_line_quoting_blenders_reason(tmp_path):
         "error: this Blender's Python 3.11"
     ) and done.stderr.rstrip().endswith("has no module 'numpy', which the tool needs (Debian's blender package: "
                                         "apt-get install python3-numpy)")  # fmt: skip
+
+
+def test_a_renderer_hung_in_a_pass_is_stopped_by_the_pass_limit(tmp_path):
+    """A Blender whose third pass never ends: stopped once no pass has ended for the limit (WELCH_PASS_TIMEOUT
+    here), one line, exit 2, nothing left running."""
+    hang = "\n".join(["import bpy, time", "count = [0]", "@bpy.app.handlers.persistent",
+                      "def hang(*_args):", "    count[0] += 1", "    if count[0] > 2:", "        time.sleep(1000)",
+                      "bpy.app.handlers.render_pre.append(hang)"])  # fmt: skip
+    (tmp_path / "hang.py").write_text(hang)
+    hung = tmp_path / "blender-that-hangs"
+    hung.write_text(f'#!/bin/sh\nif [ "$1" = "--version" ]; then exec {BLENDER} "$@"; fi\n'
+                    f'exec {BLENDER} --python "{tmp_path / "hang.py"}" "$@"\n')  # fmt: skip
+    hung.chmod(0o755)
+    line = [sys.executable, "-m", "batch", "render", "--scene", "corner", "--blender", str(hung), *SMALL, "--seeds",
+            "0:6", "--out", str(tmp_path / "h.npz")]  # fmt: skip
+    env = {**os.environ, "WELCH_PASS_TIMEOUT": "4"}
+    done = subprocess.run(line, capture_output=True, text=True, env=env, timeout=120)
+    assert done.returncode == 2 and done.stderr.splitlines()[-1] == (
+        f"error: {hung} finished no pass in 4 s and was stopped (WELCH_PASS_TIMEOUT)"
+    )
+    assert subprocess.run(["pgrep", "-f", str(tmp_path)], capture_output=True).returncode == 1

@@ -260,7 +260,7 @@ def test_a_mitsuba_suite_through_the_pytest_plugin(tmp_path):
 
     planted = pytest_in(tmp_path, "--welch-set", "max_depth=3")
     assert planted.returncode == 1, planted.stdout[-3000:]
-    assert any(line.startswith("failed: biased: whole image -") for line in planted.stdout.splitlines())
+    assert any(line.startswith("failed: biased: ") and "whole image -" in line for line in planted.stdout.splitlines())
 
 
 def test_check_with_a_command_pairs_the_seeds_of_one_command_and_refuses_what_cannot_work(toy):

@@ -157,7 +157,7 @@ def test_a_biased_headline_leads_with_the_claim_that_decided():
                "whole_image": {"estimate": -0.0786, "low": -1.0271, "high": 0.081, "confidence": 0.99}}  # fmt: skip
     assert words.sentence(outcome) == (
         "biased: -6.04 % (its interval over every tile needs more passes) in R of the 128x128 tile at x 0, y 0 "
-        "(p 2.42e-06); whole image -7.86 % [-102.71 %, +8.10 %], which alone does not exclude 0: the bias is local"
+        "(p 2.42e-06); whole image -7.86 % [-102.71 %, +8.10 %], not significant on its own"
     )
     outcome["whole_image"] |= {"low": -0.09, "high": -0.06}  # the whole image agrees: it leads, as before
     assert words.sentence(outcome).startswith(

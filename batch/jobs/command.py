@@ -29,6 +29,7 @@ import time
 
 from .._siblings import welch_core as wc
 from ..errors import BatchError
+from .launch import pass_limit
 
 PLACEHOLDERS = ("seed", "out", "spp", "set", "python")
 REQUIRED = ("seed", "out")
@@ -38,11 +39,6 @@ RENDERER = "command"
 
 #: The end of a failed command's output shown in the error (its last lines say why, as a rule).
 ERROR_TAIL = 600
-
-#: The longest a pass may run: this many times the slowest pass so far, and at least PASS_LIMIT_FLOOR seconds;
-#: the environment variable WELCH_PASS_TIMEOUT (seconds) sets it outright. A pass that runs past it hangs.
-PASS_LIMIT_FACTOR = 20
-PASS_LIMIT_FLOOR = 600.0
 
 #: Seconds a stopped command has to end after SIGTERM before it is killed.
 STOP_GRACE = 2.0
@@ -129,29 +125,11 @@ class CommandRenderer:
             self._folder.cleanup()
         return False
 
-    def pass_limit(self) -> tuple[float, str]:
-        """Seconds a pass may run before it is taken for hung (`PASS_LIMIT_FACTOR`, WELCH_PASS_TIMEOUT), and
-        where the number comes from."""
-        text = os.environ.get("WELCH_PASS_TIMEOUT", "").strip()
-        if text:
-            try:
-                limit = float(text)
-            except ValueError:
-                limit = 0.0
-            if not 0.0 < limit < float("inf"):
-                raise BatchError(f"WELCH_PASS_TIMEOUT must be a positive number of seconds, got {text!r}")
-            return limit, "WELCH_PASS_TIMEOUT"
-        why = (
-            f"{PASS_LIMIT_FACTOR} x the slowest pass so far, at least {PASS_LIMIT_FLOOR:.0f} s; WELCH_PASS_TIMEOUT "
-            "sets it"
-        )
-        return max(PASS_LIMIT_FLOOR, PASS_LIMIT_FACTOR * self._slowest), why
-
     def _run(self, line: list[str], seed: int) -> tuple[int, str, str]:
         """Run one pass's command in a session of its own: (exit code, stdout, stderr). A stop of this process
-        (Ctrl-C, SIGTERM) ends it at once and raises KeyboardInterrupt; a pass past `pass_limit` is ended and
-        refused in one line."""
-        (limit, why), start = self.pass_limit(), time.monotonic()
+        (Ctrl-C, SIGTERM) ends it at once and raises KeyboardInterrupt; a pass past `launch.pass_limit` is ended
+        and refused in one line."""
+        (limit, why), start = pass_limit(self._slowest), time.monotonic()
         try:
             process = subprocess.Popen(line, cwd=self.cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                                        errors="replace", start_new_session=True)  # fmt: skip

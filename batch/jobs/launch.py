@@ -28,6 +28,30 @@ from .protocol import ChunkRequest, Exit
 _BLENDER_ERROR = re.compile(r"^Error: \S")
 _PYTHON_ERROR = re.compile(r"^[A-Za-z_.]*(Error|Exception|Interrupt): \S")
 
+#: The longest a pass may run: this many times the slowest pass so far, and at least PASS_LIMIT_FLOOR seconds;
+#: the environment variable WELCH_PASS_TIMEOUT (seconds) sets it outright. A pass that runs past it hangs.
+PASS_LIMIT_FACTOR = 20
+PASS_LIMIT_FLOOR = 600.0
+
+
+def pass_limit(slowest: float) -> tuple[float, str]:
+    """Seconds a pass may run before it is taken for hung, given the `slowest` pass so far (0: none yet), and
+    where the number comes from."""
+    text = os.environ.get("WELCH_PASS_TIMEOUT", "").strip()
+    if text:
+        try:
+            limit = float(text)
+        except ValueError:
+            limit = 0.0
+        if not 0.0 < limit < float("inf"):
+            raise BatchError(f"WELCH_PASS_TIMEOUT must be a positive number of seconds, got {text!r}")
+        return limit, "WELCH_PASS_TIMEOUT"
+    why = (
+        f"{PASS_LIMIT_FACTOR} x the slowest pass so far, at least {PASS_LIMIT_FLOOR:.0f} s; WELCH_PASS_TIMEOUT sets it"
+    )
+    return max(PASS_LIMIT_FLOOR, PASS_LIMIT_FACTOR * slowest), why
+
+
 #: The folder that holds the ``batch`` and ``welch_core`` packages (the repository or the installed extension).
 ROOT = Path(__file__).resolve().parents[2]
 ENTRY_SCRIPT = ROOT / "batch" / "blender_entry.py"

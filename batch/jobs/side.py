@@ -22,7 +22,7 @@ from .._siblings import welch_core as wc
 from ..errors import BatchError, RendererFailed
 from . import protocol
 from .job import RenderJob
-from .launch import JobProcess, blender_version, bpy_version, job_command
+from .launch import JobProcess, blender_version, bpy_version, job_command, pass_limit
 from .protocol import ChunkRequest, Exit
 
 #: Seconds to wait for a render process to end once its requests are closed.
@@ -31,6 +31,9 @@ FINISH_WAIT = 60.0
 #: Seconds a render process may take to start (load Blender and the scene) before it is taken for hung; the
 #: environment variable WELCH_START_TIMEOUT overrides it (a production scene on slow storage may need more).
 START_TIMEOUT = float(os.environ.get("WELCH_START_TIMEOUT", "900"))
+
+#: Seconds a render process taken for hung has to save what it has before it is killed.
+HUNG_WAIT = 5.0
 
 #: Seconds of silence at start-up after which the user is told what the run waits for.
 START_NOTICE = 15.0
@@ -55,6 +58,7 @@ class Side:
         self.passes = 0  # in the statistics file
         self._started_at, self._alive = time.monotonic(), False  # since when, and whether it has said anything
         self._noticed = False  # whether the wait at start-up was said
+        self._last_pass = time.monotonic()  # when the last pass ended
         self.render_seconds = 0.0  # the seconds of the passes rendered here (their own, start-up not counted)
         self.pass_seconds: list[float] = []  # each of them
         self.process: JobProcess | None = None
@@ -96,7 +100,7 @@ class Side:
         passes = min(passes, len(self.job.seeds))
         if passes <= self.passes:
             return
-        self._asked = passes
+        self._asked, self._last_pass = passes, time.monotonic()  # the pass clock counts from the request
         self.process.request(passes - self.passes)
 
     def poll(self) -> bool:
@@ -118,12 +122,24 @@ class Side:
             self._warn(f"waiting for {self.job.blender or self.job.python or 'the render process'} to start "
                        f"rendering ({waited:.0f} s so far; stopped at {START_TIMEOUT:.0f} s, WELCH_START_TIMEOUT sets "
                        "it; Ctrl-C stops it now)")  # fmt: skip
+        self._check_pass_time()
         if not self._alive and waited > START_TIMEOUT:
             self.stop()
             who = self.job.blender or self.job.python or "the render process"
             raise BatchError(self._named(f"{who} did not start rendering within {START_TIMEOUT:.0f} s "
                                          "(WELCH_START_TIMEOUT sets the limit)"))  # fmt: skip
         return False
+
+    def _check_pass_time(self) -> None:
+        """Stop the side when no pass has ended for longer than `launch.pass_limit` (a hung renderer), once one
+        has (before, `START_TIMEOUT` waits for it)."""
+        if not self.pass_seconds:
+            return
+        limit, why = pass_limit(max(self.pass_seconds))
+        if time.monotonic() - self._last_pass > limit:
+            self.process.stop(HUNG_WAIT)  # a hung pass will not end: a short chance to save, then killed
+            who = self.job.blender or self.job.python or "the render process"
+            raise RendererFailed(self._named(f"{who} finished no pass in {limit:g} s and was stopped ({why})"))
 
     def wait(self) -> None:
         """Block until the passes asked for are saved."""
@@ -165,6 +181,7 @@ class Side:
                 if isinstance(event, protocol.PassDone):
                     self.render_seconds += event.seconds
                     self.pass_seconds.append(event.seconds)
+                    self._last_pass = time.monotonic()
                 if self.progress is not None:
                     self.progress.emit(event)
         return saved

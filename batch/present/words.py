@@ -60,7 +60,8 @@ def deterministic(count: int, test: str) -> str:
 
 def _biased_claim(outcome: dict[str, Any], text: str, whole: str | None) -> list[str]:
     """A `biased` verdict's parts: the whole image first where its interval agrees (excludes 0), else the tile that
-    decided first and the whole image said to be no evidence on its own; an interval too wide to state said so."""
+    decided first and the whole image said to be not significant on its own; an interval too wide to state said
+    so."""
     top, image = outcome["most_significant"], outcome.get("whole_image") or {}
     agrees = image.get("low") is not None and (image["low"] > 0 or image["high"] < 0)
     decided = None
@@ -73,7 +74,7 @@ def _biased_claim(outcome: dict[str, Any], text: str, whole: str | None) -> list
         decided = f"{interval} in {where(top)} (p {fmt.p_value(top['p_value'])})"
     if agrees or decided is None:
         return [f"{text}: {whole}" if whole else text] + ([f"most significant {decided}"] if decided else [])
-    return [f"{text}: {decided}"] + ([f"{whole}, which alone does not exclude 0: the bias is local"] if whole else [])
+    return [f"{text}: {decided}"] + ([f"{whole}, not significant on its own"] if whole else [])
 
 
 def sentence(outcome: dict[str, Any]) -> str:
