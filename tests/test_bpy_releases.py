@@ -95,6 +95,25 @@ def test_the_release_cache(tmp_path):
     assert done.stdout.startswith("4.9.9\t") and "broken: --python" in done.stdout
 
 
+def test_each_release_line_names_its_python_and_one_that_is_missing_is_said_in_one_line(tmp_path):
+    assert [releases.python_needed(v) for v in ("4.1.1", "4.2.23", "5.0.1", "5.1.0", "5.2.3")] == [
+        "3.10", "3.11", "3.11", "3.13", "3.13"
+    ]  # fmt: skip
+    assert releases.base_python("5.0.1") == sys.executable  # this Python is 3.11
+    env = {**os.environ, "WELCH_BPY_CACHE": str(tmp_path / "cache"), "PATH": "/usr/bin:/bin",
+           "PYENV_ROOT": str(tmp_path / "no-pyenv")}  # fmt: skip
+    done = batch("bpy", "5.2.3", env=env)
+    assert done.returncode == Exit.USAGE and done.stderr.splitlines() == [
+        "error: bpy 5.2.3 needs Python 3.13 (its Blender runs it) and there is no python3.13 on PATH: install one, "
+        "or name it with --base-python PATH"
+    ]
+    done = batch("bpy", "5.2.3", "--base-python", sys.executable, env=env)
+    assert done.stderr.splitlines() == [
+        f"error: --base-python {sys.executable}: bpy 5.2.3 needs Python 3.13, this is 3.11"
+    ]
+    assert not (tmp_path / "cache").exists()  # nothing made
+
+
 def release_python() -> str:
     folder = releases.cache_folder() / RELEASE
     python = releases.python_of(folder)
@@ -138,3 +157,19 @@ def test_a_release_matrix_and_the_fog_bisect(tmp_path):
     assert done.returncode == Exit.OK, done.stdout[-2000:] + done.stderr[-2000:]
     found = json.loads((tmp_path / "b" / "bisect.json").read_text())
     assert found["first"] == "current" and [s["pair"]["verdict"] for s in found["steps"]] == ["biased", "no_evidence"]
+
+
+@pytest.mark.slow
+def test_the_current_lts_against_this_bpy(tmp_path):
+    """Blender 5.2 LTS (bpy 5.2.3 on Python 3.13, made by ./dev test) against the tool's 5.0.1: the corner scene
+    converges to the same image, and the run records the release that rendered it."""
+    python = releases.python_of(releases.cache_folder() / "5.2.3")
+    if not python.exists():
+        pytest.skip(f"no bpy 5.2.3 environment in {releases.cache_folder()} (./dev test makes it where a Python "
+                    "3.13 can be had: python -m batch bpy 5.2.3)")  # fmt: skip
+    done = batch("check", "--scene", "corner", "--resolution", 32, 32, "--tile", 8, "--test-python", python,
+                 "--max-passes", 64, "--tolerance", "off", "--out", tmp_path / "c")  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.startswith("verdict: no evidence of bias")
+    test = wc.load_stats(tmp_path / "c" / "test.npz", pixels=False)
+    assert test.info.renderer_version.startswith("5.2.3") and test.info.sampling_pattern == "TABULATED_SOBOL"

@@ -376,12 +376,15 @@ def build_parser() -> argparse.ArgumentParser:
         help="a Python with another Cycles release's bpy module, for --python (made once, then cached)",
         description="Make (once) and print the Python of a virtual environment with bpy==VERSION, to render with "
         "that release: `render --python`, `check --python/--test-python`, `suite run --python`. Each takes about "
-        "1 GB on disk, in $WELCH_BPY_CACHE (default ~/.cache/welch-bias/bpy). Releases on the package index for "
-        "Python 3.11: 4.2.x LTS, 4.3, 4.4, 4.5.x LTS, 5.0.x.",
+        "1 GB on disk, in $WELCH_BPY_CACHE (default ~/.cache/welch-bias/bpy). Each release line runs one Python, "
+        "found on PATH (python3.13) or among pyenv's, or named with --base-python: 4.2.x LTS to 5.0.x need 3.11, "
+        "5.1 and 5.2.x LTS need 3.13. `bpy --list` says which each cached one has.",
         epilog='Example: python -m batch check --scene corner --python "$(python -m batch bpy 4.5.4)" --out c/',
     )
     r.add_argument("version", nargs="?", metavar="VERSION", help="the release, e.g. 4.5.4")
     r.add_argument("--list", action="store_true", help="list the cached releases, their Pythons and sizes")
+    r.add_argument("--base-python", metavar="PATH", help="the Python to make the environment with (default: the "
+                   "one the release needs, found on PATH or among pyenv's)")  # fmt: skip
 
     d = sub.add_parser("demo", help="the built-in corner scene against a biased variant (walls 0.21 instead of 0.2)")
     d.add_argument("--out", default=os.path.join("out", "demo"), metavar="REPORT_DIR")
@@ -741,7 +744,8 @@ def cmd_bpy(args) -> int:
     if args.list:
         found = releases.installed()
         for r in found:
-            print(f"{r.version}\t{r.python}\t{r.banner}\t{r.size / 1e9:.1f} GB")
+            print(f"{r.version}\tPython {releases.python_needed(r.version)}\t{r.python}\t{r.banner}\t"
+                  f"{r.size / 1e9:.1f} GB")  # fmt: skip
         if not found:
             print(
                 f"no bpy release in {releases.cache_folder()} (python -m batch bpy VERSION makes one)", file=sys.stderr
@@ -749,7 +753,8 @@ def cmd_bpy(args) -> int:
         return Exit.OK
     if args.version is None:
         raise BatchError("give a release (python -m batch bpy 4.5.4), or --list")
-    python = releases.ensure(args.version, say=lambda line: print(line, file=sys.stderr, flush=True))
+    say = lambda line: print(line, file=sys.stderr, flush=True)  # noqa: E731
+    python = releases.ensure(args.version, say=say, base=args.base_python)
     print(python)
     return Exit.OK
 
