@@ -3,11 +3,15 @@
     python -m blender_addon.build [--platform linux-x64 ...] [--dist-dir dist] [--offline]
     python -m blender_addon.build --legacy [--dist-dir dist]
 
-For each chosen platform (default: all the manifest declares) the cp311 wheels the manifest lists are downloaded
-into ``./wheels`` (kept as a cache, nothing else in the repository is written), the files selected by the
-manifest's ``[build]`` rules are staged with a manifest limited to those platforms, ``blender_ext.py build
---split-platforms`` (shipped inside the bpy wheel) writes one zip per platform into ``dist/``, and every zip is
-validated.
+The manifest declares the whole range of Blender's extension platform (4.2 LTS to 5.2 LTS) and the wheels of
+every Python those releases run. For each Python (`PYTHONS`: 3.11 for 4.2 to 5.0, 3.13 for 5.1 and 5.2) and each
+chosen platform (default: all the manifest declares) the wheels the manifest lists are downloaded into
+``./wheels`` (kept as a cache, nothing else in the repository is written), the files selected by the manifest's
+``[build]`` rules are staged with a manifest limited to that Python's releases and wheels and to those platforms,
+``blender_ext.py build --split-platforms`` (shipped inside the bpy wheel) writes one zip per platform, named
+``<id>-<version>-py311-<platform>.zip``, into ``dist/``, and every zip is validated. A Blender outside a zip's
+range refuses it at install. A distribution's Blender built on another Python (Debian's 5.2 runs 3.14) gets no
+wheel that loads: install the legacy zip and the system's scipy there.
 
 ``--legacy`` writes ``dist/<id>-<version>-legacy.zip`` for Blender 3.4 to 4.1 (*Preferences > Add-ons > Install*):
 the same files under one top folder named after the id, without the manifest and without wheels (those Blenders
@@ -33,6 +37,9 @@ from pathlib import Path
 from types import ModuleType
 
 MANIFEST = "blender_manifest.toml"
+
+#: Each Python Blender's extension releases run: its wheel tag and the releases that run it, [min, max).
+PYTHONS = {"3.11": ("cp311", "4.2.0", "5.1.0"), "3.13": ("cp313", "5.1.0", "5.3.0")}
 ROOT = Path(__file__).resolve().parent.parent
 
 
@@ -83,15 +90,23 @@ def wheels_for(ext: ModuleType, manifest: dict, platforms: list[str]) -> list[st
     return [w for w in manifest.get("wheels", []) if set(wheel_platforms(ext, w)) & set(platforms)]
 
 
+def python_of_wheel(wheel: str) -> str:
+    """The Python (a key of `PYTHONS`) a wheel file is built for."""
+    tag = Path(wheel).stem.split("-")[-3]
+    found = [python for python, (wheel_tag, _min, _max) in PYTHONS.items() if wheel_tag == tag]
+    if not found:
+        raise BuildError(f"wheel {Path(wheel).name} is for {tag}, which no Blender release of the range runs")
+    return found[0]
+
+
 def pip_download_command(wheel_filename: str, dest: Path) -> list[str]:
     """A pip command that fetches exactly this wheel file (name, version, Python and platform tags)."""
-    name, version, python_tag, abi_tag, platform_tag = Path(wheel_filename).stem.split("-")[-5:]
+    name, version, _python_tag, abi_tag, platform_tag = Path(wheel_filename).stem.split("-")[-5:]
+    python = python_of_wheel(wheel_filename)
     command = [sys.executable, "-m", "pip", "download", f"{name}=={version}", "--only-binary=:all:", "--no-deps"]
-    command += ["--python-version", "3.11", "--implementation", "cp", "--abi", abi_tag, "--dest", str(dest)]
+    command += ["--python-version", python, "--implementation", "cp", "--abi", abi_tag, "--dest", str(dest)]
     for tag in platform_tag.split("."):
         command += ["--platform", tag]
-    if python_tag != "cp311":
-        raise BuildError(f"wheel {wheel_filename} is not for CPython 3.11 (Blender 5.0)")
     return command
 
 
@@ -128,8 +143,15 @@ def _toml_list(values: list[str]) -> str:
     return "[\n" + "".join(f'  "{v}",\n' for v in values) + "]"
 
 
-def limited_manifest(text: str, platforms: list[str], wheels: list[str]) -> str:
-    """The manifest text with its ``platforms`` and ``wheels`` lists replaced."""
+def limited_manifest(text: str, platforms: list[str], wheels: list[str], python: str | None = None) -> str:
+    """The manifest text with its ``platforms`` and ``wheels`` lists replaced, and with `python` its range of
+    Blender releases narrowed to those that run that Python."""
+    if python is not None:
+        _tag, low, high = PYTHONS[python]
+        for key, value in (("blender_version_min", low), ("blender_version_max", high)):
+            text, count = re.subn(rf'(?m)^{key} = "[^"]*"$', f'{key} = "{value}"', text)
+            if count != 1:
+                raise BuildError(f"the manifest needs one {key} line")
     for key, values in (("platforms", platforms), ("wheels", wheels)):
         text, count = re.subn(rf"(?ms)^{key} = \[.*?\]", f"{key} = {_toml_list(values)}", text, count=1)
         if count != 1:
@@ -154,12 +176,14 @@ def run_blender_ext(*args: str) -> None:
         raise BuildError(f"blender_ext.py {args[0]} failed: {lines[-1]}")
 
 
-def zip_name(manifest: dict, platform: str) -> str:
-    return f"{manifest['id']}-{manifest['version']}-{platform.replace('-', '_')}.zip"
+def zip_name(manifest: dict, platform: str, python: str) -> str:
+    line = PYTHONS[python][0].replace("cp", "py")
+    return f"{manifest['id']}-{manifest['version']}-{line}-{platform.replace('-', '_')}.zip"
 
 
-def build(platforms: list[str] | None, dist_dir: Path, root: Path = ROOT, offline: bool = False) -> list[Path]:
-    """Build and validate one zip per platform; returns their paths."""
+def build(platforms: list[str] | None, dist_dir: Path, root: Path = ROOT, offline: bool = False,
+          pythons: list[str] | None = None) -> list[Path]:  # fmt: skip
+    """Build and validate one zip per Python (`PYTHONS`, default all) and platform; returns their paths."""
     manifest = read_manifest(root)
     declared = manifest.get("platforms", [])
     platforms = platforms or declared
@@ -168,14 +192,18 @@ def build(platforms: list[str] | None, dist_dir: Path, root: Path = ROOT, offlin
         raise BuildError(f"platform {unknown[0]!r} is not in the manifest's platforms {declared}")
     run_blender_ext("validate", str(root))
     ext = load_blender_ext()
-    wheels = wheels_for(ext, manifest, platforms)
-    ensure_wheels(root, wheels, offline)
-    text = limited_manifest((root / MANIFEST).read_text(encoding="utf-8"), platforms, wheels)
     dist_dir.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(prefix="welch_ext_") as staging:
-        stage(root, select_files(ext, root, manifest), text, wheels, Path(staging))
-        run_blender_ext("build", "--source-dir", staging, "--output-dir", str(dist_dir), "--split-platforms")
-    zips = [dist_dir / zip_name(manifest, p) for p in platforms]
+    zips = []
+    for python in pythons or list(PYTHONS):
+        wheels = [w for w in wheels_for(ext, manifest, platforms) if python_of_wheel(w) == python]
+        ensure_wheels(root, wheels, offline)
+        text = limited_manifest((root / MANIFEST).read_text(encoding="utf-8"), platforms, wheels, python)
+        with tempfile.TemporaryDirectory(prefix="welch_ext_") as staging, tempfile.TemporaryDirectory() as out:
+            stage(root, select_files(ext, root, manifest), text, wheels, Path(staging))
+            run_blender_ext("build", "--source-dir", staging, "--output-dir", out, "--split-platforms")
+            for platform in platforms:  # blender_ext names a zip by its platform only
+                built = Path(out) / f"{manifest['id']}-{manifest['version']}-{platform.replace('-', '_')}.zip"
+                zips.append(Path(shutil.move(built, dist_dir / zip_name(manifest, platform, python))))
     for path in zips:
         run_blender_ext("validate", str(path))
     return zips
@@ -239,15 +267,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--platform", action="append", help="Blender platform, e.g. linux-x64 (repeatable)")
     parser.add_argument("--dist-dir", type=Path, default=ROOT / "dist", help="output folder (default: dist)")
     parser.add_argument("--offline", action="store_true", help="fail instead of downloading missing wheels")
+    parser.add_argument("--python", action="append", choices=sorted(PYTHONS),
+                        help="only the zips for the Blender releases that run this Python (repeatable)")  # fmt: skip
     parser.add_argument("--legacy", action="store_true", help="build the add-on zip for Blender 3.4 to 4.1 instead")
     args = parser.parse_args(argv)
-    if args.legacy and args.platform:
-        parser.error("--legacy has no platforms: it bundles no wheels")
+    if args.legacy and (args.platform or args.python):
+        parser.error("--legacy has no platforms or Pythons: it bundles no wheels")
     try:
         if args.legacy:
             zips = [build_legacy(args.dist_dir.resolve())]
         else:
-            zips = build(args.platform, args.dist_dir.resolve(), offline=args.offline)
+            zips = build(args.platform, args.dist_dir.resolve(), offline=args.offline, pythons=args.python)
     except BuildError as ex:
         print(f"error: {ex}", file=sys.stderr)
         return 1

@@ -41,13 +41,15 @@ def test_manifest_wheels_are_the_pinned_runtime_dependencies_for_every_platform(
         pins[requirement.name.lower()] = requirement.specifier
     ext = build.load_blender_ext()
     for platform_name in MANIFEST["platforms"]:
-        wheels = build.wheels_for(ext, MANIFEST, [platform_name])
-        names = sorted(Path(w).name.split("-")[0] for w in wheels)
-        assert names == ["openexr", "scipy"], platform_name  # numpy is Blender's own; matplotlib is not needed
-        for wheel in wheels:
-            name, version, python_tag, abi_tag = Path(wheel).name.split("-")[:4]
-            # the versions the extension bundles are ones the package allows
-            assert version in pins[name] and python_tag == abi_tag == "cp311", wheel
+        for python, (tag, _low, _high) in build.PYTHONS.items():
+            wheels = [w for w in build.wheels_for(ext, MANIFEST, [platform_name]) if build.python_of_wheel(w) == python]
+            names = sorted(Path(w).name.split("-")[0] for w in wheels)
+            assert names == ["openexr", "scipy"], (platform_name, python)  # numpy is Blender's own
+            for wheel in wheels:
+                name, version, python_tag, abi_tag = Path(wheel).name.split("-")[:4]
+                assert python_tag == abi_tag == tag, wheel
+                # the versions bundled are the package's own, but scipy for the Blenders with an older numpy
+                assert version in pins[name] or (name, python, version) == ("scipy", "3.11", "1.15.3"), wheel
     assert all(w.startswith("./wheels/") for w in MANIFEST["wheels"])
 
 
@@ -55,7 +57,8 @@ def test_manifest_fields_follow_blender_rules():
     assert re.fullmatch(r"[a-z][a-z0-9_]*", MANIFEST["id"]) and "__" not in MANIFEST["id"]
     tagline = MANIFEST["tagline"]
     assert len(tagline) <= 64 and tagline[-1].isalnum()
-    assert MANIFEST["blender_version_min"] == "5.0.0" and MANIFEST["type"] == "add-on"
+    assert (MANIFEST["blender_version_min"], MANIFEST["blender_version_max"]) == ("4.2.0", "5.3.0")
+    assert MANIFEST["type"] == "add-on"
     assert MANIFEST["permissions"]["files"]
 
 
@@ -116,6 +119,9 @@ INSTALL_SCRIPT = textwrap.dedent(
     report["operator"] = bpy.ops.welch_bias.run.idname()
     prefs = bpy.context.preferences.addons[module].preferences
     report["prefs"] = [prefs.keep_temporary_files, prefs.runs_to_keep]
+    import scipy.stats  # the bundled wheel, loaded by this Blender's Python and numpy
+
+    report["scipy"] = scipy.__version__
     report["user_dir"] = str(sys.modules[module + ".blender_addon.session"].user_dir())
     bpy.ops.preferences.addon_disable(module=module)
     report["disabled"] = not enabled()
@@ -139,41 +145,69 @@ def test_extension_builds_validates_and_installs(tmp_path):
         timeout=600,
     )
     assert done.returncode == 0, done.stderr
-    zip_path = Path(done.stdout.strip())
-    assert zip_path == tmp_path / "dist" / f"{MANIFEST['id']}-{MANIFEST['version']}-{target.replace('-', '_')}.zip"
-    with zipfile.ZipFile(zip_path) as archive:
-        names = archive.namelist()
-        inner = tomllib.loads(archive.read("blender_manifest.toml").decode())
-    assert {n.split("/")[0] for n in names} == EXTENSION_TOP_LEVEL
-    assert not [n for n in names if "__pycache__" in n or n.endswith(".pyc")]
-    assert inner["platforms"] == [target] and inner["build"]["generated"]["platforms"] == [target]
-    assert sorted(n for n in names if n.startswith("wheels/")) == sorted(w[2:] for w in inner["wheels"])
+    stem = f"{MANIFEST['id']}-{MANIFEST['version']}"
+    zips = {line: tmp_path / "dist" / f"{stem}-{line}-{target.replace('-', '_')}.zip" for line in ("py311", "py313")}
+    assert [Path(p) for p in done.stdout.split()] == list(zips.values())
+    for line, zip_path in zips.items():
+        with zipfile.ZipFile(zip_path) as archive:
+            names = archive.namelist()
+            inner = tomllib.loads(archive.read("blender_manifest.toml").decode())
+        assert {n.split("/")[0] for n in names} == EXTENSION_TOP_LEVEL
+        assert not [n for n in names if "__pycache__" in n or n.endswith(".pyc")]
+        assert inner["platforms"] == [target] and inner["build"]["generated"]["platforms"] == [target]
+        assert sorted(n for n in names if n.startswith("wheels/")) == sorted(w[2:] for w in inner["wheels"])
+        assert all(f"-cp{line[2:]}-" in w for w in inner["wheels"])
+        low, high = build.PYTHONS[f"3.{line[3:]}"][1:]
+        assert (inner["blender_version_min"], inner["blender_version_max"]) == (low, high)
 
-    user = tmp_path / "user"
+    # Each zip installs and runs in a release of its range (bpy 5.0.1 here; 5.2.3 LTS on Python 3.13 and 4.5.4
+    # LTS where ./dev test made them), and a release outside it refuses it at install.
+    module = f"bl_ext.user_default.{MANIFEST['id']}"
+    from scipy import __version__ as own_scipy
+
+    # This Python has its own scipy before the extension's; the releases' environments have none but the wheel's.
+    for python, line, scipy in ((sys.executable, "py311", own_scipy), (release_python("5.2.3"), "py313", "1.17.1"),
+                                (release_python("4.5.4"), "py311", "1.15.3")):  # fmt: skip
+        if python is None:
+            continue
+        done = install(python, zips[line], tmp_path / f"user-{line}-{Path(python).parents[1].name}")
+        report = json.loads(done)
+        assert report == {
+            "installed_enabled": True,
+            "addon_module": module,
+            "welch_core": module + ".welch_core",
+            "operator": "WELCH_BIAS_OT_run",
+            "prefs": [False, 10],
+            "scipy": scipy,
+            "user_dir": report["user_dir"],
+            "disabled": True,
+            "reenabled": True,
+        }
+        assert Path(report["user_dir"]).is_dir()
+    refused = install(sys.executable, zips["py313"], tmp_path / "user-refused", expect_failure=True)
+    assert "This Blender version (5.0.1) doesn't meet the minimum supported version (5.1.0)" in refused
+
+
+def release_python(version: str) -> str | None:
+    """The Python of a cached bpy release (``python -m batch bpy VERSION``), or None."""
+    from batch.jobs import releases
+
+    python = releases.python_of(releases.cache_folder() / version)
+    return str(python) if python.exists() else None
+
+
+def install(python: str, zip_path: Path, user: Path, expect_failure: bool = False) -> str:
+    """Install and enable the zip in the bpy module of `python` (its own user folder): the report's JSON, or
+    with `expect_failure` what Blender printed."""
     env = dict(os.environ, BLENDER_USER_RESOURCES=str(user))
-    done = subprocess.run(
-        [sys.executable, "-c", INSTALL_SCRIPT, str(zip_path), MANIFEST["id"]],
-        cwd=tmp_path,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    done = subprocess.run([python, "-c", INSTALL_SCRIPT, str(zip_path), MANIFEST["id"]], cwd=user.parent, env=env,
+                          capture_output=True, text=True, timeout=300)  # fmt: skip
+    if expect_failure:
+        assert done.returncode != 0
+        return done.stdout + done.stderr
     lines = [line for line in done.stdout.splitlines() if line.startswith("REPORT ")]
     assert done.returncode == 0 and lines, done.stdout[-2000:] + done.stderr[-2000:]
-    report = json.loads(lines[-1][len("REPORT ") :])
-    module = f"bl_ext.user_default.{MANIFEST['id']}"
-    assert report == {
-        "installed_enabled": True,
-        "addon_module": module,
-        "welch_core": module + ".welch_core",
-        "operator": "WELCH_BIAS_OT_run",
-        "prefs": [False, 10],
-        "user_dir": report["user_dir"],
-        "disabled": True,
-        "reenabled": True,
-    }
-    assert Path(report["user_dir"]).is_dir() and user in Path(report["user_dir"]).parents
+    return lines[-1][len("REPORT ") :]
 
 
 # -- the legacy add-on (Blender 3.4 to 4.1) ------------------------------------------------------------------
@@ -234,7 +268,7 @@ def test_legacy_build_has_no_platforms(tmp_path):
         capture_output=True,
         text=True,
     )
-    assert done.returncode == 2 and "--legacy has no platforms" in done.stderr
+    assert done.returncode == 2 and "--legacy has no platforms or Pythons" in done.stderr
 
 
 LEGACY_INSTALL_SCRIPT = textwrap.dedent(
