@@ -10,8 +10,9 @@ chosen platform (default: all the manifest declares) the wheels the manifest lis
 ``[build]`` rules are staged with a manifest limited to that Python's releases and wheels and to those platforms,
 ``blender_ext.py build --split-platforms`` (shipped inside the bpy wheel) writes one zip per platform, named
 ``<id>-<version>-py311-<platform>.zip``, into ``dist/``, and every zip is validated. A Blender outside a zip's
-range refuses it at install. A distribution's Blender built on another Python (Debian's 5.2 runs 3.14) gets no
-wheel that loads: install the legacy zip and the system's scipy there.
+range refuses it at install, and so does one whose Python its wheels are not for ("This Python version (3.14)
+isn't compatible with (3.13)"): Linux distributions that build Blender on another Python (Debian's 5.2 runs 3.14)
+get a zip of their own where the wheels exist (py314), else the legacy zip with the system's scipy.
 
 ``--legacy`` writes ``dist/<id>-<version>-legacy.zip`` for Blender 3.4 to 4.1 (*Preferences > Add-ons > Install*):
 the same files under one top folder named after the id, without the manifest and without wheels (those Blenders
@@ -38,8 +39,14 @@ from types import ModuleType
 
 MANIFEST = "blender_manifest.toml"
 
-#: Each Python Blender's extension releases run: its wheel tag and the releases that run it, [min, max).
-PYTHONS = {"3.11": ("cp311", "4.2.0", "5.1.0"), "3.13": ("cp313", "5.1.0", "5.3.0")}
+#: Each Python Blender's extension releases run: its wheel tag and the releases that run it, [min, max). Blender
+#: itself runs 3.11 (4.2 to 5.0) and 3.13 (5.1, 5.2); Linux distributions build 5.2 on 3.14 (Debian's), for whose
+#: platforms alone the manifest lists wheels.
+PYTHONS = {
+    "3.11": ("cp311", "4.2.0", "5.1.0"),
+    "3.13": ("cp313", "5.1.0", "5.3.0"),
+    "3.14": ("cp314", "5.2.0", "5.3.0"),
+}
 ROOT = Path(__file__).resolve().parent.parent
 
 
@@ -196,12 +203,15 @@ def build(platforms: list[str] | None, dist_dir: Path, root: Path = ROOT, offlin
     zips = []
     for python in pythons or list(PYTHONS):
         wheels = [w for w in wheels_for(ext, manifest, platforms) if python_of_wheel(w) == python]
+        served = [p for p in platforms if any(p in wheel_platforms(ext, w) for w in wheels)]
+        if not served:  # a Python no Blender of these platforms runs (3.14: Linux distributions only)
+            continue
         ensure_wheels(root, wheels, offline)
-        text = limited_manifest((root / MANIFEST).read_text(encoding="utf-8"), platforms, wheels, python)
+        text = limited_manifest((root / MANIFEST).read_text(encoding="utf-8"), served, wheels, python)
         with tempfile.TemporaryDirectory(prefix="welch_ext_") as staging, tempfile.TemporaryDirectory() as out:
             stage(root, select_files(ext, root, manifest), text, wheels, Path(staging))
             run_blender_ext("build", "--source-dir", staging, "--output-dir", out, "--split-platforms")
-            for platform in platforms:  # blender_ext names a zip by its platform only
+            for platform in served:  # blender_ext names a zip by its platform only
                 built = Path(out) / f"{manifest['id']}-{manifest['version']}-{platform.replace('-', '_')}.zip"
                 zips.append(Path(shutil.move(built, dist_dir / zip_name(manifest, platform, python))))
     for path in zips:

@@ -44,6 +44,9 @@ def test_manifest_wheels_are_the_pinned_runtime_dependencies_for_every_platform(
         for python, (tag, _low, _high) in build.PYTHONS.items():
             wheels = [w for w in build.wheels_for(ext, MANIFEST, [platform_name]) if build.python_of_wheel(w) == python]
             names = sorted(Path(w).name.split("-")[0] for w in wheels)
+            if python == "3.14" and platform_name != "linux-x64":  # only Linux distributions build on 3.14
+                assert names == [], platform_name
+                continue
             assert names == ["openexr", "scipy"], (platform_name, python)  # numpy is Blender's own
             for wheel in wheels:
                 name, version, python_tag, abi_tag = Path(wheel).name.split("-")[:4]
@@ -146,7 +149,8 @@ def test_extension_builds_validates_and_installs(tmp_path):
     )
     assert done.returncode == 0, done.stderr
     stem = f"{MANIFEST['id']}-{MANIFEST['version']}"
-    zips = {line: tmp_path / "dist" / f"{stem}-{line}-{target.replace('-', '_')}.zip" for line in ("py311", "py313")}
+    lines = ("py311", "py313", "py314") if target == "linux-x64" else ("py311", "py313")
+    zips = {line: tmp_path / "dist" / f"{stem}-{line}-{target.replace('-', '_')}.zip" for line in lines}
     assert [Path(p) for p in done.stdout.split()] == list(zips.values())
     for line, zip_path in zips.items():
         with zipfile.ZipFile(zip_path) as archive:
