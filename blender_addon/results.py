@@ -161,22 +161,34 @@ def show_in_image_editor(context, image, sidebar: bool = False) -> bool:
                 ui.active_panel_category = SIDEBAR_TAB
     if (sidebar or newly) and not bpy.app.background:
         # Once the editor has drawn: a workspace just switched to has no region size yet.
-        bpy.app.timers.register(lambda: _fit(area), first_interval=0.1)
+        tries = iter(range(FIT_TRIES))
+        bpy.app.timers.register(lambda: _fit(area) if next(tries, None) is not None else None, first_interval=0.1)
     area.tag_redraw()
     return True
 
 
-def _fit(area) -> None:
-    """Fit the image to its Image Editor (the map opened at 1:1 is a small square in a large editor)."""
+#: Times a fit is tried, FIT_INTERVAL seconds apart, until the editor has drawn at its size (5.2 takes longer
+#: than 3.4 to give a workspace just switched to its regions' sizes).
+FIT_TRIES, FIT_INTERVAL = 30, 0.1
+
+
+def _fit(area) -> float | None:
+    """Fit the image to its Image Editor (the map opened at 1:1 is a small square in a large editor); the
+    interval to try again while the view is not fitted yet (a timer's return), else None."""
     try:
         window = next((w for w in bpy.context.window_manager.windows if area in w.screen.areas[:]), None)
         region = next((r for r in area.regions if r.type == "WINDOW"), None)
         if window is None or region is None:
-            return  # the area is not shown any more (another workspace, a closed window)
-        with bpy.context.temp_override(window=window, area=area, region=region, space_data=area.spaces.active):
+            return None  # the area is not shown any more (another workspace, a closed window)
+        space = area.spaces.active
+        with bpy.context.temp_override(window=window, area=area, region=region, space_data=space):
             bpy.ops.image.view_all(fit_view=True)
+        # The zoom at once (the view's own rectangle follows at the next draw); before its editor is ready, 5.2
+        # takes the operator and leaves the zoom as it was.
+        shown = space.zoom[0] * max(space.image.size) if space.image is not None else 0.0
+        return None if shown >= 0.5 * min(region.width, region.height) else FIT_INTERVAL
     except (RuntimeError, TypeError, ReferenceError):  # the area was freed meanwhile
-        pass
+        return None
 
 
 def frame_tile(context, x: int, y: int, size: int) -> bool:

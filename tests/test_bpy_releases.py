@@ -72,10 +72,20 @@ def batch(*args, env=None) -> subprocess.CompletedProcess:
                           cwd=ROOT, env=env)  # fmt: skip
 
 
-def test_check_takes_binaries_or_pythons_not_both(tmp_path):
-    done = batch("check", "--scene", "corner", "--blender", "/opt/b", "--test-python", "/opt/p", "--out", tmp_path)
+def test_check_takes_a_binary_or_a_python_for_each_side(tmp_path):
+    """A binary on one side and another release's bpy module on the other (a user's Blender against the module of
+    its release) is one check; both for one side is refused."""
+    from batch.cli.commands import build_parser
+    from batch.decide.check import check_job_from_args
+
+    args = build_parser().parse_args(["check", "--scene", "corner", "--blender", "/opt/b", "--test-python", "/opt/p",
+                                      "--out", str(tmp_path / "c")])  # fmt: skip
+    job = check_job_from_args(args)
+    assert (job.reference.blender, job.reference.python) == ("/opt/b", None)
+    assert (job.test.blender, job.test.python) == (None, "/opt/p") and not job.paired
+    done = batch("check", "--scene", "corner", "--blender", "/opt/b", "--python", "/opt/p", "--out", tmp_path)
     assert done.returncode == Exit.USAGE
-    assert "give the builds as Blender binaries (--blender, --test-blender) or as Pythons" in done.stderr
+    assert done.stderr.startswith("error: give a side's build as a Blender binary or as a Python with bpy, not both")
 
 
 def test_the_release_cache(tmp_path):

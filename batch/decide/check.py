@@ -503,12 +503,15 @@ def check_job_from_args(args) -> CheckJob:
             raise BatchError(f"{option} {path}: no such file")
     max_passes = None if args.max_seconds is not None else (args.max_passes or DEFAULT_MAX_PASSES)
     count = max_passes or MAX_SEEDS_FOR_SECONDS
-    if (args.blender or args.test_blender) and (args.python or args.test_python):
-        raise BatchError("give the builds as Blender binaries (--blender, --test-blender) or as Pythons with bpy "
-                         "(--python, --test-python), not both")  # fmt: skip
-    same_build = (args.test_blender or args.blender) == args.blender and (args.test_python or args.python) == (
-        args.python
-    ) and (args.test_command or args.pass_command) == args.pass_command  # fmt: skip
+    if (args.blender and args.python) or (args.test_blender and args.test_python):
+        raise BatchError("give a side's build as a Blender binary or as a Python with bpy, not both (--blender or "
+                         "--python; --test-blender or --test-python)")  # fmt: skip
+    # The test side's build: its own, else the reference's (a binary given to one side is not the other's Python).
+    test_blender = args.test_blender or (None if args.test_python else args.blender)
+    test_python = args.test_python or (None if args.test_blender else args.python)
+    same_build = test_blender == args.blender and test_python == args.python and (
+        args.test_command or args.pass_command
+    ) == args.pass_command  # fmt: skip
     paired = same_build and not args.unpaired
     ref_seeds = range(count)
     test_seeds = ref_seeds if paired else range(UNPAIRED_SEEDS, UNPAIRED_SEEDS + count)
@@ -542,8 +545,8 @@ def check_job_from_args(args) -> CheckJob:
         blend=_absolute(args.test_blend or args.blend),
         scene=None if args.test_blend else args.scene,
         blend_scene=args.test_blend_scene or (None if args.test_blend else args.blend_scene),
-        blender=args.test_blender or args.blender,
-        python=args.test_python or args.python,
+        blender=test_blender,
+        python=test_python,
         overrides=tuple(args.overrides),
         command=args.test_command or args.pass_command,
         **(common | own),

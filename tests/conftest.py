@@ -1,0 +1,38 @@
+"""Fixtures shared by several test modules."""
+
+import os
+import subprocess
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: The Debian sid root with Blender 5.2 that ./dev test makes (as root; see its sid_root).
+SID_ROOT = Path.home() / ".cache" / "welch-bias" / "debian-sid"
+
+
+@pytest.fixture(scope="module")
+def blender52(tmp_path_factory):
+    """A command that runs the root's Blender 5.2 in the caller's folder (chroot), with /tmp, /dev, /proc and this
+    tree bind-mounted at their own paths for the time of the tests."""
+    if not (SID_ROOT / ".ready").exists():
+        pytest.skip(f"no Blender 5.2 root at {SID_ROOT} (./dev test makes it as root)")
+    if os.geteuid() != 0:
+        pytest.skip("entering the Blender 5.2 root needs root (chroot, mount)")
+    mounted = []
+    try:
+        for folder in ("/proc", "/dev", "/tmp", str(ROOT)):
+            target = SID_ROOT / folder.lstrip("/")
+            target.mkdir(parents=True, exist_ok=True)
+            if subprocess.run(["mountpoint", "-q", str(target)]).returncode != 0:
+                subprocess.run(["mount", "--bind", folder, str(target)], check=True)
+                mounted.append(target)
+        wrapper = tmp_path_factory.mktemp("blender52") / "blender"
+        wrapper.write_text(f"#!/bin/sh\nexec chroot {SID_ROOT} /bin/sh -c 'cd \"$0\" && exec /usr/bin/blender \"$@\"' "
+                           '"$PWD" "$@"\n')  # fmt: skip
+        wrapper.chmod(0o755)
+        yield str(wrapper)
+    finally:
+        for target in reversed(mounted):
+            subprocess.run(["umount", "-l", str(target)])
