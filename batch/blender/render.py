@@ -3,7 +3,7 @@
 A pass is one Cycles render with its own seed, saved as an uncompressed 32-bit EXR into a per-process temporary
 file (in ``/dev/shm`` where it exists) and read back with numpy (`welch_core.exr`): the Render Result's pixels
 are empty in background mode (see ``BLENDER_FACTS.md``). Needs numpy and nothing else a stock Blender lacks;
-settings are feature-detected so Blender 3.4 to 5.0 work.
+settings are feature-detected so Blender 3.4 to 5.2 LTS work.
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ box lit by a constant square light. ``corner_glass`` adds a glass sphere (the ca
 
 Every builder leaves Cycles' biased-by-default settings at their unbiased values, so the built-in scenes are
 unbiased as built; the batch tool's render settings (device, spp, output format) are applied separately. The
-builders run in Blender 3.4 to 5.0 (node trees are created where an older Blender starts without one).
+builders run in Blender 3.4 to 5.2 LTS (node trees are created where an older Blender starts without one).
 """
 
 from __future__ import annotations
