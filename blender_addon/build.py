@@ -40,11 +40,11 @@ from types import ModuleType
 MANIFEST = "blender_manifest.toml"
 
 #: Each Python Blender's extension releases run: its wheel tag and the releases that run it, [min, max). Blender
-#: itself runs 3.11 (4.2 to 5.0) and 3.13 (5.1, 5.2); Linux distributions build 5.2 on 3.14 (Debian's), for whose
-#: platforms alone the manifest lists wheels.
+#: itself runs 3.11 (4.2 to 5.0) and 3.13 (5.1 to 5.3, the newest measured); Linux distributions build 5.2 on 3.14
+#: (Debian's), for whose platforms alone the manifest lists wheels.
 PYTHONS = {
     "3.11": ("cp311", "4.2.0", "5.1.0"),
-    "3.13": ("cp313", "5.1.0", "5.3.0"),
+    "3.13": ("cp313", "5.1.0", "5.4.0"),
     "3.14": ("cp314", "5.2.0", "5.3.0"),
 }
 ROOT = Path(__file__).resolve().parent.parent

@@ -60,7 +60,7 @@ def test_manifest_fields_follow_blender_rules():
     assert re.fullmatch(r"[a-z][a-z0-9_]*", MANIFEST["id"]) and "__" not in MANIFEST["id"]
     tagline = MANIFEST["tagline"]
     assert len(tagline) <= 64 and tagline[-1].isalnum()
-    assert (MANIFEST["blender_version_min"], MANIFEST["blender_version_max"]) == ("4.2.0", "5.3.0")
+    assert (MANIFEST["blender_version_min"], MANIFEST["blender_version_max"]) == ("4.2.0", "5.4.0")
     assert MANIFEST["type"] == "add-on"
     assert MANIFEST["permissions"]["files"]
 
