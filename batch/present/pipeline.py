@@ -62,18 +62,13 @@ def present(
     ref: wc.TileStats,
     test: wc.TileStats,
     *,
-    names: tuple[str | None, str | None] = (None, None),
-    outcome: wc.Outcome | None = None,
-    check: dict[str, Any] | None = None,
-    layers: tuple[dict, dict] | None = None,
     previews=None,
     full_maps: bool = False,
-    selftest: bool = True,
+    **assessing,
 ) -> dict[str, Any]:
-    """`assess` and `write` in one: the report of `comparison` in `out_dir`. Returns report.json's content."""
-    assessment = assess(comparison, ref, test, names=names, outcome=outcome, check=check, layers=layers,
-                        selftest=selftest)  # fmt: skip
-    return write(out_dir, assessment, ref, test, previews, full_maps)
+    """`assess` (with its keyword options `assessing`: names, outcome, check, layers, selftest) and `write` in one:
+    the report of `comparison` in `out_dir`. Returns report.json's content."""
+    return write(out_dir, assess(comparison, ref, test, **assessing), ref, test, previews, full_maps)
 
 
 def _load(ref_path: str, test_path: str, pixels: bool):
