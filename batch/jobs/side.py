@@ -59,6 +59,7 @@ class Side:
         self._started_at, self._alive = time.monotonic(), False  # since when, and whether it has said anything
         self._noticed = False  # whether the wait at start-up was said
         self._last_pass = time.monotonic()  # when the last pass ended
+        self._slowest: float | None = None  # seconds of the slowest pass here (None: none yet)
         self.render_seconds = 0.0  # the seconds of the passes rendered here (their own, start-up not counted)
         self.pass_seconds: list[float] = []  # each of them
         self.process: JobProcess | None = None
@@ -119,27 +120,25 @@ class Side:
         waited = time.monotonic() - self._started_at
         if not self._alive and waited > START_NOTICE and not self._noticed:
             self._noticed = True
-            self._warn(f"waiting for {self.job.blender or self.job.python or 'the render process'} to start "
+            self._warn(f"waiting for {self._who} to start "
                        f"rendering ({waited:.0f} s so far; stopped at {START_TIMEOUT:.0f} s, WELCH_START_TIMEOUT sets "
                        "it; Ctrl-C stops it now)")  # fmt: skip
         self._check_pass_time()
         if not self._alive and waited > START_TIMEOUT:
             self.stop()
-            who = self.job.blender or self.job.python or "the render process"
-            raise BatchError(self._named(f"{who} did not start rendering within {START_TIMEOUT:.0f} s "
+            raise BatchError(self._named(f"{self._who} did not start rendering within {START_TIMEOUT:.0f} s "
                                          "(WELCH_START_TIMEOUT sets the limit)"))  # fmt: skip
         return False
 
     def _check_pass_time(self) -> None:
         """Stop the side when no pass has ended for longer than `launch.pass_limit` (a hung renderer), once one
         has (before, `START_TIMEOUT` waits for it)."""
-        if not self.pass_seconds:
+        if self._slowest is None:
             return
-        limit, why = pass_limit(max(self.pass_seconds))
+        limit, why = pass_limit(self._slowest)
         if time.monotonic() - self._last_pass > limit:
             self.process.stop(HUNG_WAIT)  # a hung pass will not end: a short chance to save, then killed
-            who = self.job.blender or self.job.python or "the render process"
-            raise RendererFailed(self._named(f"{who} finished no pass in {limit:g} s and was stopped ({why})"))
+            raise RendererFailed(self._named(f"{self._who} finished no pass in {limit:g} s and was stopped ({why})"))
 
     def wait(self) -> None:
         """Block until the passes asked for are saved."""
@@ -181,7 +180,7 @@ class Side:
                 if isinstance(event, protocol.PassDone):
                     self.render_seconds += event.seconds
                     self.pass_seconds.append(event.seconds)
-                    self._last_pass = time.monotonic()
+                    self._last_pass, self._slowest = time.monotonic(), max(self._slowest or 0.0, event.seconds)
                 if self.progress is not None:
                     self.progress.emit(event)
         return saved
@@ -190,12 +189,17 @@ class Side:
         if self.warn is not None:
             self.warn(f"{self.name}: {message}" if self.name else message)
 
+    @property
+    def _who(self) -> str:
+        """What renders this side, for messages: its Blender, its Python, else the render process."""
+        return self.job.blender or self.job.python or "the render process"
+
     def _named(self, message: str) -> str:
         return f"{self.name} side: {message}" if self.name else message
 
     def _failed(self, code: int):
         reason = self.process.error_message() or "no error message"
-        who = self.job.blender or self.job.python or "the render process"
+        who = self._who
         if code == 0:  # ended well without saving what was asked for: not a render process of this tool
             raise BatchError(self._named(f"{who} exited without rendering the passes asked for ({reason})"))
         if code == Exit.USAGE:
