@@ -15,5 +15,5 @@ way (there are no import circles):
   ``present``.
 - ``cli``: the command line, which may import everything.
 
-``errors`` (the one input error) and ``_siblings`` (welch_core, wherever batch sits) serve them all.
+``errors`` (the exit codes and the one input error) and ``_siblings`` (welch_core, wherever batch sits) serve them all.
 """

@@ -14,13 +14,15 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 if __name__ == "__main__":
+    from batch.errors import Exit  # the standard library only: it imports where the tool can't
+
     try:
         from batch.cli import argv_after_dashdash, main
     except ModuleNotFoundError as exc:  # this Blender's Python, not the tool: Debian's blender needs python3-numpy
         print(f"error: this Blender's Python {sys.version.split()[0]} has no module {exc.name!r}, which the tool "
               f"needs (Debian's blender package: apt-get install python3-{exc.name})", file=sys.stderr)  # fmt: skip
-        sys.exit(2)
+        sys.exit(Exit.USAGE)
     except BaseException as exc:  # any other failure to start is internal
         print(f"error: internal error: the batch tool can't start: {type(exc).__name__}: {exc}", file=sys.stderr)
-        sys.exit(4)
+        sys.exit(Exit.INTERNAL)
     sys.exit(main(argv_after_dashdash(sys.argv)))

@@ -54,7 +54,6 @@ def summarize(assessment, sources: dict[str, str], report=None) -> dict:
     title, icon = verdict.title + (" (Bit-Identical)" if decided.identical else ""), VERDICT_ICONS[verdict]
     if not decided.decided:  # a look of a check that goes on: numbers so far, no verdict yet
         title, icon = f"No Verdict Yet ({decided.n_test} Passes)", "TIME"
-        summary["sentence"] = "so far: " + summary["sentence"].partition(": ")[2]
     summary.update(
         verdict_title=title,
         design=presenting().summaries.design_line(summary),

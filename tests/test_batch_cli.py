@@ -15,7 +15,7 @@ import pytest
 
 import welch_core as wc
 from batch import cli
-from batch.jobs.protocol import Exit
+from batch.errors import Exit
 from batch.jobs.seeds import format_seeds, parse_seeds
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -18,9 +18,8 @@ import pytest
 import welch_core as wc
 from batch import cli
 from batch.decide import suite as suites
-from batch.errors import BatchError
+from batch.errors import BatchError, Exit
 from batch.jobs.lock import OutputLock
-from batch.jobs.protocol import Exit
 from batch.present.junit import junit_xml
 from batch.present.pipeline import present
 

@@ -18,9 +18,8 @@ import pytest
 
 import welch_core as wc
 from batch import cli
-from batch.errors import BatchError
+from batch.errors import BatchError, Exit
 from batch.jobs.lock import OutputLock
-from batch.jobs.protocol import Exit
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -14,9 +14,8 @@ import pytest
 
 import welch_core as wc
 from batch import cli
-from batch.errors import BatchError
+from batch.errors import BatchError, Exit
 from batch.jobs import lobes
-from batch.jobs.protocol import Exit
 from welch_core.exr import write_exr_channels
 
 
@@ -65,9 +64,9 @@ def test_components_add_up_to_combined_with_either_blenders_names(names):
     total = sum(layers[name] for name in lobes.COMPONENTS)
     np.testing.assert_allclose(total, layers["combined"], rtol=1e-6)
     np.testing.assert_allclose(layers["lightgroup:key"], layers["combined"] * 0.5, rtol=1e-6)
-    assert lobes.component_sum_error(layers["combined"], [layers[n] for n in lobes.COMPONENTS]) < 1e-6
+    assert wc.component_sum_error(layers["combined"], [layers[n] for n in lobes.COMPONENTS]) < 1e-6
     missing = [layers[n] for n in lobes.COMPONENTS if n != "glossy"]
-    assert lobes.component_sum_error(layers["combined"], missing) > 0.01
+    assert wc.component_sum_error(layers["combined"], missing) > 0.01
     with pytest.raises(BatchError, match="the pass has no 'Glossy Direct' layer"):
         lobes.layers_from_channels({k: v for k, v in channels.items() if "Gloss" not in k}, ("glossy",))
 
@@ -243,9 +242,9 @@ def test_the_components_add_up_to_the_image_in_every_builtin_scene():
             for seed in (0, 1):
                 layers = renderer.render_layers(seed)
                 sums = {key: wc.tile_sums(image, 8) for key, image in layers.items()}
-                error = lobes.component_sum_error(sums["combined"], [sums[c] for c in lobes.COMPONENTS])
+                error = wc.component_sum_error(sums["combined"], [sums[c] for c in lobes.COMPONENTS])
                 worst[name] = max(worst.get(name, 0.0), error)
-    assert max(worst.values()) <= lobes.COMPONENT_SUM_TOLERANCE, worst
+    assert max(worst.values()) <= wc.layers.SUM_TOLERANCE, worst
 
 
 @pytest.mark.slow

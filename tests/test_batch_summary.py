@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from batch.present import summary
+from batch.present.pipeline import assess
 from tests.synthetic import make_run, scene_means, tile_sum_samples
 from welch_core import RunInfo, compare
 
@@ -108,7 +109,7 @@ def test_summary_is_strict_json_for_every_verdict():
         ref, test = make_run(a, range(12)), make_run(b, range(12, 24))
         c = compare(ref, test)
         assert c.verdict == verdict
-        data = json.loads(json.dumps(summary.summarize(c, ref, test), allow_nan=False))
+        data = json.loads(json.dumps(assess(c, ref, test).summary, allow_nan=False))
         assert data["verdict"] == verdict and data["alpha"] == 0.01
         assert data["verdict_text"] == c.verdict.text
         assert data["grid"] == {"width": 96, "height": 96, "tile": 32, "tiles_x": 3, "tiles_y": 3}

@@ -14,11 +14,10 @@ from pathlib import Path
 import pytest
 
 import welch_core as wc
-from batch.errors import BatchError
+from batch.errors import BatchError, Exit
 from batch.jobs import releases
 from batch.jobs.job import RenderJob
 from batch.jobs.launch import bpy_version, job_command
-from batch.jobs.protocol import Exit
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The second release the tests render with (an LTS with the same Python as the tool's bpy).

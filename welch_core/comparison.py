@@ -20,10 +20,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .decision import Evidence, Outcome, decide
-from .diagnostics import MIN_PASSES_FOR_NORMALITY, normality
+from .diagnostics import MIN_PASSES_FOR_NORMALITY, normality, split_halves
 from .effect import Effect, effect_sizes
 from .errors import SeedOverlapError, WelchInputError, check_alpha
-from .multitest import GlobalTest, combine_channels, global_test
+from .multitest import GlobalTest, bonferroni, bonferroni_p, combine_channels, global_test
 from .permutation import needs_resampling, permutation_max_t
 from .tiles import TileStats
 from .ttest import Reason, TTestResult, paired_from_stats, welch_from_stats
@@ -40,6 +40,7 @@ __all__ = [
     "paired_differences",
     "scale_factors",
     "seed_relation",
+    "selftest",
     "test_tiles",
 ]
 
@@ -129,6 +130,12 @@ class Comparison:
     def used(self) -> np.ndarray:
         """Tiles that enter the verdict: testable and trusted."""
         return np.isfinite(self.tile_pvalues) & self.trusted
+
+    @property
+    def adjusted_pvalues(self) -> np.ndarray:
+        """Each tile's p adjusted over the fixed design's family of `biased` (Holm within this scale, Bonferroni
+        over both sides of the interval and the scales): what is compared with alpha itself."""
+        return bonferroni_p(self.global_test.adjusted, 2, max(len(self.scales), 1))
 
     @property
     def qvalues(self) -> np.ndarray:
@@ -338,9 +345,10 @@ def compare(
     claim = check_claim_tile(equivalence_tile, scales, tolerance)
     count = len(scales)
     with np.errstate(invalid="ignore"):
-        found = [(s.global_test.adjusted * 2 * count <= alpha)[..., None] & (s.reasons == Reason.VALID) for s in scales]
+        found = [(s.global_test.adjusted <= bonferroni(alpha, 2, count))[..., None] & (s.reasons == Reason.VALID)
+                 for s in scales]  # fmt: skip
     p_values = [s.p_value for s in scales if np.isfinite(s.p_value)]
-    p_value = min(1.0, count * min(p_values)) if p_values else float("nan")  # Bonferroni over the scales
+    p_value = bonferroni_p(min(p_values), count) if p_values else float("nan")
     resampling = None
     if needs_resampling(kind, ref.n, test.n):
         # Different pass counts: `biased` needs the permutation test too (an intersection of two rejections), and
@@ -353,7 +361,7 @@ def compare(
     evidence = Evidence(
         design="fixed",
         significant=found,
-        simultaneous=[alpha / (2 * count * s.pvalues.size) for s in scales],
+        simultaneous=[bonferroni(alpha, 2, count, s.pvalues.size) for s in scales],
         equivalence=2 * alpha,
         whole=alpha,
         p_value=p_value,
@@ -365,6 +373,16 @@ def compare(
     if outcome.deterministic:
         p_value = 0.0
     return dataclasses.replace(finest, p_value=p_value, scales=scales, uncovered=uncovered, outcome=outcome)
+
+
+def selftest(ref: TileStats, alpha: float = 0.01) -> Comparison | None:
+    """The paper's advice (§6): test the reference against itself first. Its two halves (alternate passes)
+    compared by Welch's test at the stored tile size only (the finest tiles are where a miscalibration shows
+    first, at half the cost); None when the reference has fewer than 4 passes. Anything but `no evidence of bias`
+    is a reason to doubt a verdict against it."""
+    if ref.n < 4:
+        return None
+    return compare(*split_halves(ref), alpha=alpha, test_kind="welch", tile=ref.tile)
 
 
 def check_tolerance(tolerance) -> float | None:

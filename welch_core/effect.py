@@ -10,6 +10,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special
 
+from .multitest import bonferroni
+
 __all__ = ["DETECTION_POWER", "Effect", "effect_sizes", "relative_interval"]
 
 #: Power at which the minimum detectable bias is quoted (the usual convention in power analysis).
@@ -34,7 +36,7 @@ def effect_sizes(tested, alpha: float, n_tests: int) -> Effect:
     low, high = relative_interval(tested, alpha)
     with np.errstate(invalid="ignore", divide="ignore"):
         rel = result.mean_difference / scale
-        level = alpha / max(n_tests, 1)
+        level = bonferroni(alpha, n_tests)
         detectable = (special.stdtrit(result.df, 1.0 - level / 2.0) + special.stdtrit(result.df, DETECTION_POWER)) * (
             result.standard_error / scale
         )

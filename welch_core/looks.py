@@ -55,6 +55,7 @@ import numpy as np
 from .comparison import TileTest, assess_scales, check_claim_tile, choose_test, identical_passes_of, test_tiles
 from .decision import Evidence, Outcome, decide
 from .errors import WelchInputError, check_alpha, check_int
+from .multitest import bonferroni
 from .permutation import needs_resampling, permutation_max_t
 from .sequential import SPENDING, boundaries, nominal_levels
 from .tiles import TileStats
@@ -287,7 +288,7 @@ def sequential_look(
         tests = [_conservative(t, n) if np.any(t.welch) else t for t in tests]
         whole = _conservative(whole, n) if np.any(whole.welch) else whole
         scales = tuple(dataclasses.replace(s, result=t.result) for s, t in zip(scales, tests, strict=True))
-    shares = [plan.alpha / (len(scales) * scale.pvalues.size) for scale in scales]
+    shares = [bonferroni(plan.alpha, len(scales), scale.pvalues.size) for scale in scales]
     scale_levels = biased_levels(fractions, shares, plan)
     equivalence_alpha = min(2 * plan.alpha, 0.5)
     equivalence_level, whole_level = _levels(

@@ -9,6 +9,7 @@ the Bonferroni combination of the two, so a `biased` verdict has a false-positiv
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,7 +18,31 @@ from scipy import special
 
 from .errors import WelchInputError, check_alpha
 
-__all__ = ["GlobalTest", "bh_qvalues", "combine_channels", "global_test", "holm", "uniformity_pvalue"]
+__all__ = [
+    "GlobalTest",
+    "bh_qvalues",
+    "bonferroni",
+    "bonferroni_p",
+    "combine_channels",
+    "global_test",
+    "holm",
+    "uniformity_pvalue",
+]
+
+
+def bonferroni(alpha: float, *family_sizes: int) -> float:
+    """The tool's one split of alpha: a hypothesis in a union of families (the scales, the tile-channels of a
+    scale, the two sides of an interval, the layers of a render, the steps of a bisect) is tested at alpha over the
+    product of their sizes, so that the chance of rejecting any true one is at most alpha (Bonferroni: valid
+    however the tests depend on each other)."""
+    return alpha / math.prod(max(int(size), 1) for size in family_sizes)
+
+
+def bonferroni_p(pvalue: npt.ArrayLike, *family_sizes: int) -> np.ndarray | float:
+    """The p-value of `bonferroni`'s split: what is compared with alpha itself (the p times the family's size,
+    at most 1)."""
+    adjusted = np.minimum(np.asarray(pvalue, dtype=float) * math.prod(max(int(s), 1) for s in family_sizes), 1.0)
+    return float(adjusted) if adjusted.ndim == 0 else adjusted
 
 
 def combine_channels(pvalues: npt.ArrayLike) -> np.ndarray:

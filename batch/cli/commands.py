@@ -14,7 +14,7 @@ Inside Blender the same arguments follow ``--``:
 
     blender -b SCENE.blend --python-exit-code 4 --python batch/blender_entry.py -- render --seeds 0:64 ...
 
-Exit codes (`batch.jobs.protocol.Exit`): 0 = done / no evidence of bias / equivalent / lint clean (demo: always 0
+Exit codes (`batch.errors.Exit`): 0 = done / no evidence of bias / equivalent / lint clean (demo: always 0
 when it ran), 1 = biased / lint found biased settings, 2 = usage or input error, 3 = inconclusive, 4 = internal
 error, 130 = interrupted (the checkpoint is kept).
 """
@@ -30,10 +30,10 @@ import traceback
 
 from .._siblings import welch_core as wc
 from ..decide.check import DEFAULT_MAX_PASSES
-from ..errors import BatchError
+from ..errors import BatchError, Exit
 from ..jobs import job as jobs
 from ..jobs.options import DEVICES, OPTIONS, TEST_SIDE, add_options, argparse_type
-from ..jobs.protocol import Exit, SigtermAsInterrupt, verdict_exit
+from ..jobs.protocol import SigtermAsInterrupt, verdict_exit
 
 DEFAULT_ALPHA = 0.01
 
@@ -674,6 +674,7 @@ def cmd_matrix(args) -> int:
     from pathlib import Path
 
     from ..decide import matrix
+    from ..decide.suite import exit_code
     from ..present.junit import junit_xml
     from ..present.matrix_page import write_bisect_page, write_matrix_page
     from ..present.progress import Progress
@@ -707,8 +708,7 @@ def cmd_matrix(args) -> int:
         note = f"{args.passes} passes a build, alpha {args.alpha:g} a cell, baseline {baseline}"
         write_matrix_page(out / "index.html", f"Release matrix: {scene}", labels, pairs, note)
         say(f"matrix: {out / 'index.html'}")
-        verdicts = {p.verdict for p in pairs}
-        return Exit.BIASED if "biased" in verdicts else Exit.INCONCLUSIVE if "inconclusive" in verdicts else Exit.OK
+        return exit_code(results)  # the suites' rule: a cell is a case expected to converge
     changes = {}
     if args.test_overrides:
         changes["overrides"] = job.overrides + tuple(args.test_overrides)

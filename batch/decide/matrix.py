@@ -170,7 +170,7 @@ def bisect(labels: list[str], shows: Callable[[str, float], Pair], alpha: float)
     """The first of the ordered `labels` for which `shows(label, level)` is `biased`, given that the last one
     shows it and the first does not (both checked first), each step at level alpha / steps."""
     planned = math.ceil(math.log2(max(len(labels) - 1, 1))) + 2
-    level = alpha / planned
+    level = wc.bonferroni(alpha, planned)
     steps: list[Step] = []
 
     def step(label: str) -> bool:

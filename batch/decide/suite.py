@@ -60,12 +60,12 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from .._siblings import welch_core as wc
-from ..errors import BatchError
+from ..errors import BatchError, Exit
 from ..jobs import command as jobs_command
 from ..jobs import options
 from ..jobs.distributed import cluster as side_cluster
 from ..jobs.job import BUILTIN_SCENES, NO_GPU_MESSAGE, RenderJob, builtin_scene_id
-from ..jobs.protocol import FAILING, Exit
+from ..jobs.protocol import FAILING, verdict_status
 from .check import CheckJob, run_check
 
 #: The suite that ships with the tool: one minimal scene per Cycles feature, and its references.
@@ -427,14 +427,17 @@ def status_of(case: Case, verdict: wc.Verdict, detectable: float | None = None, 
     """Passed when the verdict is what the case expects and the case could have failed: a case expected to be
     `biased` fails when not found; given a `tolerance`, `no evidence of bias` passes only where `detectable` (the
     bias found with 80 % power, `Outcome.min_detectable`) is at most it, else the case is `underpowered`."""
-    if verdict == wc.Verdict.INCONCLUSIVE:
-        return "inconclusive"
-    found = verdict == wc.Verdict.BIASED
-    if found != (case.expect == "biased"):
-        return "failed"
-    if tolerance is not None and verdict == wc.Verdict.NO_EVIDENCE and (detectable is None or detectable > tolerance):
+    status = verdict_status(verdict)
+    if case.expect == "biased" and status != "inconclusive":
+        return "passed" if verdict == wc.Verdict.BIASED else "failed"
+    if (
+        status == "passed"
+        and tolerance is not None
+        and verdict == wc.Verdict.NO_EVIDENCE
+        and (detectable is None or detectable > tolerance)
+    ):
         return "underpowered"
-    return "passed"
+    return status
 
 
 def underpowered_text(detectable: float | None, tolerance: float, tile: int) -> str:

@@ -19,10 +19,10 @@ import threading
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import BatchError
+from ..errors import BatchError, Exit
 from . import protocol
 from .job import RenderJob
-from .protocol import ChunkRequest, Exit
+from .protocol import ChunkRequest
 
 #: A line in which Blender states why it stopped ("Error: Failed to read blend file ..."), and a Python exception's.
 _BLENDER_ERROR = re.compile(r"^Error: \S")

@@ -47,9 +47,6 @@ PASS_PROPERTIES = {
 }  # fmt: skip
 
 LIGHTGROUP_PREFIX = "lightgroup:"
-#: Relative difference between Combined and the sum of the components beyond which a component is missing or
-#: counted twice (float32 passes agree to about 1e-7; a missing lobe is a visible share of the light).
-COMPONENT_SUM_TOLERANCE = 1e-4
 
 
 def parse_lobes(text: str) -> tuple[str, ...]:
@@ -89,11 +86,3 @@ def layers_from_channels(channels: dict[str, np.ndarray], lobes) -> dict[str, np
         for name in sorted(n for n in names if n.startswith("Combined_")):
             out[LIGHTGROUP_PREFIX + name.removeprefix("Combined_")] = rgb(name)
     return out
-
-
-def component_sum_error(combined: np.ndarray, components: list[np.ndarray]) -> float:
-    """The largest relative difference, over tiles and channels, between Combined's tile sums and the sum of the
-    components' (arrays of per-pass tile sums of the same shape); 0 where they agree."""
-    total = np.sum(components, axis=0)
-    scale = np.maximum(np.abs(combined), np.abs(combined).mean() + 1e-30)
-    return float(np.max(np.abs(total - combined) / scale))

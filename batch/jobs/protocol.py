@@ -11,12 +11,13 @@ the lines back with `parse`, which skips anything else a renderer prints.
 from __future__ import annotations
 
 import dataclasses
-import enum
 import json
 import math
 import signal
 from dataclasses import dataclass
 from typing import ClassVar
+
+from ..errors import Exit
 
 
 @dataclass(frozen=True)
@@ -192,23 +193,17 @@ def parse_request(line: str) -> int | ChunkRequest | None:
     return ChunkRequest(tuple(seeds), out)
 
 
-# -- exit codes ----------------------------------------------------------------------------------------------
+# -- verdicts and exit codes ---------------------------------------------------------------------------------
 
 
-class Exit(enum.IntEnum):
-    """The exit code of every process of the tool, one meaning each, so that CI (and the process that started
-    a job) can act on it."""
-
-    OK = 0  #: done; `no evidence of bias`; `equivalent`
-    BIASED = 1  #: `biased` (lint: a setting that biases the image), and nothing else
-    USAGE = 2  #: bad input: an argument, a missing, damaged or foreign file, a scene that can't render, a full disk
-    INCONCLUSIVE = 3  #: `inconclusive`; a suite case that can't be confirmed
-    INTERNAL = 4  #: an internal error, also when the tool can't even start
-    INTERRUPTED = 130  #: Ctrl-C or SIGTERM: what was rendered is kept, ``--resume`` continues
-
-
-#: The exit code of each verdict (by its label).
-VERDICT_EXIT = {"biased": Exit.BIASED, "equivalent": Exit.OK, "no_evidence": Exit.OK, "inconclusive": Exit.INCONCLUSIVE}
+#: What each verdict (by its label) means where the two sides should converge to the same image: the status of a
+#: suite case, a matrix cell or a JUnit test, and the exit code of the process. The one table of it.
+VERDICTS = {
+    "biased": ("failed", Exit.BIASED),
+    "equivalent": ("passed", Exit.OK),
+    "no_evidence": ("passed", Exit.OK),
+    "inconclusive": ("inconclusive", Exit.INCONCLUSIVE),
+}
 
 
 #: The statuses of a suite case that count against the suite (a JUnit failure, exit code 3 unless a case is biased):
@@ -218,7 +213,12 @@ FAILING = ("failed", "inconclusive", "underpowered")
 
 def verdict_exit(verdict) -> Exit:
     """The exit code of a `welch_core.Verdict` (or its label)."""
-    return VERDICT_EXIT[str(verdict)]
+    return VERDICTS[str(verdict)][1]
+
+
+def verdict_status(verdict) -> str:
+    """The status of a `welch_core.Verdict` (or its label) where no difference is expected."""
+    return VERDICTS[str(verdict)][0]
 
 
 def interrupted(code: int | None) -> bool:

@@ -19,11 +19,11 @@ import time
 from pathlib import Path
 
 from .._siblings import welch_core as wc
-from ..errors import BatchError, RendererFailed
+from ..errors import BatchError, Exit, RendererFailed
 from . import protocol
 from .job import RenderJob
 from .launch import JobProcess, blender_version, bpy_version, job_command, pass_limit
-from .protocol import ChunkRequest, Exit
+from .protocol import ChunkRequest
 
 #: Seconds to wait for a render process to end once its requests are closed.
 FINISH_WAIT = 60.0

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from .._siblings import welch_core as wc
+from ..errors import Exit
 from . import fmt
 
 THUMBNAIL = 96  # pixels, the longer side
@@ -56,8 +57,9 @@ def write_dashboard(path: Path, summary: dict, outcomes, references: list[Path])
         f'<span style="color:{_STATUS_COLOURS[k]}">{v} {k}</span>' for k, v in summary["counts"].items() if v
     )
     nothing_ran = all(o.status == "skipped" for o in outcomes)
-    verdict = {0: "every case passed", 1: "a case failed", 2: "nothing ran: every case was skipped" if nothing_ran
-               else "a case could not run", 3: "a case is inconclusive or underpowered"}  # fmt: skip
+    verdict = {Exit.OK: "every case passed", Exit.BIASED: "a case failed", Exit.USAGE: "nothing ran: every case was "
+               "skipped" if nothing_ran else "a case could not run", Exit.INCONCLUSIVE: "a case is inconclusive or "
+               "underpowered"}  # fmt: skip
     page = f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>Suite {html.escape(summary["suite"])}: \
 {verdict[summary["exit_code"]]}</title>

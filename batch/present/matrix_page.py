@@ -9,14 +9,13 @@ import os
 from pathlib import Path
 
 from .._siblings import welch_core as wc
+from ..jobs.protocol import verdict_status
 from . import fmt
 from .dashboard import _STATUS_COLOURS, _STYLE, pvalue_thumbnail
 
-_VERDICT_STATUS = {"biased": "failed", "inconclusive": "inconclusive", "equivalent": "passed", "no_evidence": "passed"}
-
 
 def _cell(pair, page: Path) -> str:
-    colour = _STATUS_COLOURS[_VERDICT_STATUS[pair.verdict]]
+    colour = _STATUS_COLOURS[verdict_status(pair.verdict)]
     whole = pair.whole_image
     difference = html.escape(fmt.difference(whole)) if whole and whole.get("estimate") is not None else "—"
     bound = "—" if pair.ruled_out is None else f"±{100 * pair.ruled_out:.2f} %"

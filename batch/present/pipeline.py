@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .._siblings import welch_core as wc
+from ..jobs.lobes import COMPONENTS
 from . import summary as summaries
 
 
@@ -38,13 +39,15 @@ def assess(
     selftest: bool = True,
 ) -> Assessment:
     """Summarise `comparison` (its own outcome, or the given `outcome` of a check's last look with the check's
-    record) and test the `layers` both runs have (light components and light groups: the reference's and the
-    test's by name)."""
-    summary = summaries.summarize(comparison, ref, test, *names, selftest=selftest, outcome=outcome, check=check)
-    tested = summaries.layers_summary(comparison, ref, test, *layers, after_looks=check is not None) if layers else None
-    if tested is not None:
-        summary["layers"] = tested[0]
-    return Assessment(summary, comparison, outcome or comparison.outcome, tested[1] if tested else {})
+    record), with the reference tested against itself (`selftest`), and test the `layers` both runs have (light
+    components and light groups: the reference's and the test's by name). Every number is welch_core's."""
+    outcome = outcome or comparison.outcome
+    own = wc.selftest(ref, outcome.alpha) if selftest else None
+    summary = summaries.summarize(comparison, ref, test, *names, selftest=own, outcome=outcome, check=check)
+    family = wc.compare_layers(comparison, ref, test, *layers, COMPONENTS, check is not None) if layers else None
+    if family is not None:
+        summary["layers"] = summaries.layers_summary(family)
+    return Assessment(summary, comparison, outcome, family.comparisons if family else {})
 
 
 def write(out_dir: str | os.PathLike, assessment: Assessment, ref, test, previews=None, full_maps: bool = False):

@@ -45,15 +45,15 @@ def summarize(
     test: wc.TileStats,
     ref_name: str | None = None,
     test_name: str | None = None,
-    selftest: bool = True,
+    selftest: wc.Comparison | None = None,
     outcome: wc.Outcome | None = None,
     check: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The JSON-ready summary of `comparison` (the content of report.json, without its file list).
 
     `outcome` is the verdict to present (default: the comparison's own; a check passes its last look's, and
-    `check` the design and its looks). Sides without a name are named by what differs between them. With
-    `selftest`, the reference's two halves are compared too (see `reference_selftest`)."""
+    `check` the design and its looks). Sides without a name are named by what differs between them. `selftest`
+    is the reference tested against itself (`welch_core.selftest`), where it was."""
     c = comparison
     outcome = outcome or c.outcome
     data = outcome.to_json()
@@ -95,7 +95,7 @@ def summarize(
         "differences": image,
         "noise_differences": noise,
         "hidden_differences": fixed[1],
-        "reference_selftest": reference_selftest(ref, outcome.alpha) if selftest else None,
+        "reference_selftest": selftest_summary(selftest),
         "dropped_pixels": ref.dropped_pixels,
         "check": check,
     }
@@ -142,7 +142,6 @@ def top_tiles(c: wc.Comparison, outcome: wc.Outcome | None = None, count: int = 
     flat = np.where(np.isfinite(c.tile_pvalues), c.tile_pvalues, np.inf).ravel()
     order = np.argsort(flat, kind="stable")[: min(count, c.n_valid)]
     names = "RGB" if c.pvalues.shape[-1] == 3 else None
-    family = 2 * max(len(c.scales), 1)
     tiles = [] if (decided := _deciding_tile(c, outcome)) is None else [decided]
     for index in order:
         row, col = np.unravel_index(index, c.tile_pvalues.shape)
@@ -158,7 +157,7 @@ def top_tiles(c: wc.Comparison, outcome: wc.Outcome | None = None, count: int = 
                 "height": h,
                 "size": c.tile,
                 "pvalue": _num(c.tile_pvalues[row, col]),
-                "adjusted_pvalue": _num(min(1.0, family * c.global_test.adjusted[row, col])),
+                "adjusted_pvalue": _num(c.adjusted_pvalues[row, col]),
                 "qvalue": _num(c.qvalues[row, col]),
                 "significant": bool(found[0][row, col]),
                 "within": None if found[0][row, col] else _within(c, found, x, y),
@@ -354,13 +353,10 @@ def fixed_notes(ref: wc.RunInfo, test: wc.RunInfo) -> tuple[list[str], list[str]
     return out, hidden
 
 
-def reference_selftest(ref: wc.TileStats, alpha: float) -> dict[str, Any] | None:
-    """The paper's advice (§6): test the reference against itself first. Its two halves (alternate passes),
-    compared; None when the reference has fewer than 4 passes."""
-    if ref.n < 4:
+def selftest_summary(check: wc.Comparison | None) -> dict[str, Any] | None:
+    """report.json's record of the reference tested against itself (`welch_core.selftest`)."""
+    if check is None:
         return None
-    # The stored tile size only: the finest tiles are where a miscalibration shows first, at half the cost.
-    check = wc.compare(*wc.split_halves(ref), alpha=alpha, test_kind="welch", tile=ref.tile)
     return {
         "verdict": check.verdict.label,
         "verdict_text": check.outcome.verdict_text,
@@ -439,90 +435,45 @@ def console_lines(summary: dict[str, Any]) -> list[str]:
     return lines
 
 
-def layers_summary(
-    combined: wc.Comparison,
-    ref: wc.TileStats,
-    test: wc.TileStats,
-    ref_layers: dict[str, wc.TileStats],
-    test_layers: dict[str, wc.TileStats],
-    after_looks: bool = False,
-) -> tuple[dict[str, Any], dict[str, wc.Comparison]] | None:
-    """Every layer both runs have (light components, light groups) tested as the image is, at alpha / L for L
-    layers with light (Bonferroni: the layers are a family of their own), which components explain a difference
-    of the image, and the check that the components add up to the image in each run; with the layers'
-    comparisons (for the report's maps). None when the runs have no layer in common. `after_looks`: the layers
-    are tested once on the final passes of a check, a description of where the difference is, not a decision
-    under the stopping rule."""
-    from ..jobs.lobes import COMPONENT_SUM_TOLERANCE, COMPONENTS
-
-    names = [name for name in ref_layers if name in test_layers]
-    # Layers only one run has: not tested, and said so (a light group renamed on one side, --lobes on one side).
-    untested = {"reference": [n for n in ref_layers if n not in test_layers],
-                "test": [n for n in test_layers if n not in ref_layers]}  # fmt: skip
-    if not names:
-        return None if not any(untested.values()) else (
-            {"layers": [], "alpha": combined.alpha, "after_looks": after_looks, "explained_by": [],
-             "explanation": None, "component_sum": {}, "untested": untested}, {})  # fmt: skip
-    lit = [n for n in names if np.any(ref_layers[n].sums) or np.any(test_layers[n].sums)]
-    alpha = combined.alpha / max(len(lit), 1)
-    rows, comparisons = [], {}
-    for name in names:
-        if name not in lit:
+def layers_summary(family: wc.LayerFamily) -> dict[str, Any]:
+    """report.json's record of the layers (`welch_core.compare_layers`): a row per layer in words, which
+    components explain a difference, and whether the components add up to the image in each run."""
+    rows = []
+    for layer in family.layers:
+        c = layer.comparison
+        if c is None:
             empty = "no light in either run"
-            rows.append({"name": name, "verdict": "empty", "verdict_text": empty, "sentence": empty, "p_value": None,
-                         "significant_tiles": 0, "share": 0.0, "largest": None})  # fmt: skip
+            rows.append({"name": layer.name, "verdict": "empty", "verdict_text": empty, "sentence": empty,
+                         "p_value": None, "significant_tiles": 0, "share": 0.0, "largest": None})  # fmt: skip
             continue
-        c = wc.compare(ref_layers[name], test_layers[name], alpha, combined.test, combined.pvalue_method)
-        comparisons[name] = c
         data = c.outcome.to_json()
         rows.append({
-            "name": name,
+            "name": layer.name,
             "verdict": c.verdict.label,
             "verdict_text": c.outcome.verdict_text,
             "sentence": words.sentence(data),
             "p_value": _num(c.p_value),
             "significant_tiles": sum(s["significant"] for s in data["scales"]),
-            "share": _num(float(ref_layers[name].sums.sum() / ref.sums.sum())) if ref.sums.sum() else None,
+            "share": None if layer.share is None else _num(layer.share),
             "largest": data["most_significant"],
         })  # fmt: skip
-    biased = [r["name"] for r in rows if r["verdict"] == wc.Verdict.BIASED and r["name"] in COMPONENTS]
-    sums = {}
-    for side, run, layers in (("reference", ref, ref_layers), ("test", test, test_layers)):
-        if all(name in layers for name in COMPONENTS):
-            error = lobes_sum_error(run, layers)
-            sums[side] = {"relative_error": error, "ok": error <= COMPONENT_SUM_TOLERANCE}
-        else:
-            sums[side] = None
-    if combined.verdict != wc.Verdict.BIASED and not after_looks:
-        explanation = None
-    elif biased:
-        explanation = f"the difference is in {', '.join(biased)}"
-    elif combined.verdict == wc.Verdict.BIASED:
-        explanation = "no single component is biased on its own: the difference is spread over several"
-    else:
-        explanation = None
-    summary = {
+    sums = {side: None if error is None else {"relative_error": error, "ok": error <= wc.layers.SUM_TOLERANCE}
+            for side, error in family.component_sum.items()}  # fmt: skip
+    return {
         "layers": rows,
-        "alpha": alpha,
-        "after_looks": after_looks,
-        "explained_by": biased,
-        "explanation": explanation,
+        "alpha": family.alpha,
+        "after_looks": family.after_looks,
+        "explained_by": list(family.explained_by),
+        "explanation": words.attribution(family.attribution, family.explained_by),
         "component_sum": sums,
-        "untested": untested,
+        "untested": {side: list(names) for side, names in family.untested.items()},
     }
-    return summary, comparisons
 
 
 def untested_lines(layers: dict[str, Any]) -> list[str]:
     """What was not tested because only one run has it."""
     return [f"not tested: {', '.join(names)} (only the {side} has {'them' if len(names) > 1 else 'it'})"
             for side, names in layers.get("untested", {}).items() if names]  # fmt: skip
-
-
-def lobes_sum_error(run: wc.TileStats, layers: dict[str, wc.TileStats]) -> float:
-    from ..jobs.lobes import COMPONENTS, component_sum_error
-
-    return component_sum_error(run.sums, [layers[name].sums for name in COMPONENTS])
 
 
 def layer_lines(layers: dict[str, Any] | None) -> list[str]:

@@ -78,8 +78,9 @@ def _biased_claim(outcome: dict[str, Any], text: str, whole: str | None) -> list
 
 
 def sentence(outcome: dict[str, Any]) -> str:
-    """The verdict in one sentence, its own word first: what it claims, at which scale, with its numbers."""
-    text, reason = outcome["verdict_text"], outcome["reason"]
+    """The verdict in one sentence, its own word first: what it claims, at which scale, with its numbers; at a
+    look of a check that goes on, "so far" first (no verdict yet)."""
+    text, reason = outcome["verdict_text"] if outcome.get("decided", True) else "so far", outcome["reason"]
     whole = whole_image(outcome)
     n = min(outcome["n_ref"], outcome["n_test"])
     if reason == "deterministic":
@@ -150,7 +151,7 @@ def sentence(outcome: dict[str, Any]) -> str:
             parts.append(open_)
         parts.append(f"bias ruled out per tile size: {ruled_out_list(outcome)}")
     elif reason == "undecided":
-        parts.append(f"undecided after {n} passes a side")
+        parts.append(f"{text}: undecided after {n} passes a side")
     elif reason == "unreachable":
         test = outcome["resampling"]
         parts.append(
@@ -253,6 +254,15 @@ def method(outcome: dict[str, Any], pvalue_method: str = "exact", check: dict[st
             + (", the intervals repeated over the looks)" if outcome["design"] == "sequential" else ")")
         )
     return text
+
+
+def attribution(where: str | None, components: tuple[str, ...] = ()) -> str | None:
+    """Where the layers put the image's difference (`welch_core.LayerFamily.attribution`), in a line."""
+    if where == "components":
+        return f"the difference is in {', '.join(components)}"
+    if where == "spread":
+        return "no single component is biased on its own: the difference is spread over several"
+    return None
 
 
 def next_step(outcome: dict[str, Any], check: bool = False, hidden: list[str] = ()) -> str:
