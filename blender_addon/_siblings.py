@@ -31,15 +31,12 @@ def presenting():
 
 
 def checking():
-    """The check engine and the command line that describes a check (batch.decide.check, batch.cli.commands),
-    imported when a run starts."""
+    """The check engine (batch.decide.check), imported when a run starts."""
     try:
-        from ..batch.cli import commands
         from ..batch.decide import check
     except ImportError:
-        from batch.cli import commands
         from batch.decide import check
-    return check, commands
+    return check
 
 
 __all__ = [

@@ -38,7 +38,7 @@ def conclude_check(context, run: runner.CheckRun) -> dict:
     """The finished check's report (written into its folder, as ``python -m batch check`` writes it) and its
     result shown: the verdict and numbers of its final look, the map of its final passes."""
     look, reference, test = run.result
-    check, _ = checking()
+    check = checking()
     report, assessment = check.report_check(run.check, look, reference, test)
     sources = {"reference": run.job.reference.out, "test": run.job.test.out}
     summary = results.store(assessment, reference, test, sources, report=report)
@@ -54,7 +54,7 @@ def show_look(context, run: runner.CheckRun) -> None:
     if taken is None:
         return
     look, reference, test = taken
-    check, _ = checking()
+    check = checking()
     sources = {"reference": run.job.reference.out, "test": run.job.test.out}
     comparison = check.look_comparison(run.job, reference, test)
     assessment = presenting().assess(comparison, reference, test, names=tuple(sources.values()), outcome=look.outcome)

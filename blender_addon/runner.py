@@ -63,7 +63,7 @@ class CheckRun:
     live = False  # what the check asks of its progress: no terminal lines here
 
     def __post_init__(self):
-        check_module, _ = checking()
+        check_module = checking()
         self.check = check_module.Check(self.job, self, side_progress=self._side, env=self.env)
         self._steps = self.check.steps()
 

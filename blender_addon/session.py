@@ -80,30 +80,32 @@ def settings_key(settings, scene) -> tuple:
     )  # fmt: skip
 
 
-def check_arguments(settings, scene, blend: str, folder: Path, resume: bool, blender: str = "") -> list[str]:
-    """The ``check`` command line of a run (on the saved copy `blend`): the panel runs exactly what
-    ``python -m batch check`` with these arguments runs, with its defaults."""
+def check_request(settings, scene, blend: str, folder: Path, resume: bool, blender: str = ""):
+    """The check of a run (on the saved copy `blend`) as `batch.decide.check.CheckRequest`: the panel's settings,
+    and the command line's defaults for everything the panel does not set."""
     reference, test = checks.sides(settings, scene)
-    argv = ["check", blend, "--blend-scene", reference.name, "--out", str(folder), "--spp", str(settings.spp),
-            "--tile", str(settings.tile), "--device", settings.device, "--alpha", f"{alpha_of(settings):g}",
-            "--max-passes", str(settings.max_passes),
-            "--tolerance", f"{settings.tolerance:g}%" if settings.tolerance > 0 else "off"]  # fmt: skip
-    if test != reference:
-        argv += ["--test-blend", blend, "--test-blend-scene", test.name]
-    for override in settings.enabled_overrides():
-        argv += ["--set", override]
-    if blender:
-        argv += ["--blender", blender]
     other = bpy.path.abspath(settings.test_build) if settings.test_build else ""
-    if other:  # another build for the test side: a Blender binary, or a Python with another release's bpy
-        argv += ["--test-python" if Path(other).name.startswith("python") else "--test-blender", other]
-    if not settings.paired:
-        argv.append("--unpaired")
-    if settings.use_lobes:
-        argv += ["--lobes", ",".join(_lobes(settings, scene))]
-    if resume:
-        argv.append("--resume")
-    return argv
+    python = other and Path(other).name.startswith("python")  # a Python with another release's bpy, or a binary
+    return checking().CheckRequest(
+        out=str(folder),
+        blend=blend,
+        blend_scene=reference.name,
+        test_blend=blend if test != reference else None,
+        test_blend_scene=test.name if test != reference else None,
+        overrides=tuple(settings.enabled_overrides()),
+        spp=settings.spp,
+        tile=settings.tile,
+        device=settings.device,
+        lobes=_lobes(settings, scene) if settings.use_lobes else (),
+        blender=blender or None,
+        test_blender=other if other and not python else None,
+        test_python=other if python else None,
+        max_passes=settings.max_passes,
+        alpha=alpha_of(settings),
+        tolerance=float(f"{settings.tolerance:g}") / 100.0 if settings.tolerance > 0 else None,  # as typed
+        unpaired=not settings.paired,
+        resume=resume,
+    )
 
 
 def _lobes(settings, scene) -> tuple[str, ...]:
@@ -125,9 +127,8 @@ def start(context, settings, resume: bool) -> runner.CheckRun:
         bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True, check_existing=False)
     elif not blend.is_file():
         raise OSError(f"the stopped run's copy of the scene is gone ({blend}): start a new run")
-    check, commands = checking()
-    argv = check_arguments(settings, context.scene, str(blend), folder, resume, blender_binary(context))
-    job = check.check_job_from_args(commands.build_parser().parse_args(argv))
+    request = check_request(settings, context.scene, str(blend), folder, resume, blender_binary(context))
+    job = checking().check_job(request)
     # Render processes started with this Python (the bpy module) find the extension's wheels.
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([*extension_wheel_paths(), *filter(None, [env.get("PYTHONPATH")])])

@@ -208,6 +208,29 @@ def test_settings_defaults_and_limits(scene):
         bpy.ops.welch_bias.override_remove(index=4)
 
 
+def test_the_panel_asks_for_the_check_the_command_line_describes(scene, tmp_path):
+    """The panel's defaults are the check's (`CheckRequest`), and its request makes the very job that the command
+    line's arguments for the same settings make."""
+    from batch.cli.commands import build_parser
+    from batch.decide.check import CheckRequest, check_job, check_job_from_args
+
+    settings = scene.welch_bias
+    declared = CheckRequest(out="")
+    assert (settings.spp, settings.tile, settings.device) == (declared.spp, declared.tile, declared.device)
+    assert (session.alpha_of(settings), settings.tolerance / 100) == (declared.alpha, pytest.approx(declared.tolerance))
+    blend = tmp_path / "scene.blend"
+    blend.write_bytes(b"BLENDER")  # the request checks that the file exists; nothing renders here
+    bpy.ops.welch_bias.override_add(text="cycles.blur_glossy=0")
+    settings.max_passes, settings.spp, settings.tolerance, settings.paired = 64, 2, 0.5, False
+    settings.test_build = "/opt/blender-5.2/blender"
+    request = session.check_request(settings, scene, str(blend), tmp_path / "run", False, "/usr/bin/blender")
+    argv = ["check", str(blend), "--blend-scene", scene.name, "--out", str(tmp_path / "run"), "--spp", "2",
+            "--tile", str(settings.tile), "--device", "CPU", "--alpha", "0.01", "--max-passes", "64",
+            "--tolerance", "0.5%", "--set", "cycles.blur_glossy=0", "--blender", "/usr/bin/blender",
+            "--test-blender", "/opt/blender-5.2/blender", "--unpaired"]  # fmt: skip
+    assert check_job(request) == check_job_from_args(build_parser().parse_args(argv))
+
+
 def test_checks_of_the_setup(scene, tmp_path):
     settings = scene.welch_bias
     settings.tile = TILE

@@ -29,7 +29,7 @@ import time
 import traceback
 
 from .._siblings import welch_core as wc
-from ..decide.check import DEFAULT_MAX_PASSES
+from ..decide.check import DEFAULT_MAX_PASSES, CheckRequest
 from ..errors import BatchError, Exit
 from ..jobs import job as jobs
 from ..jobs.options import DEVICES, OPTIONS, TEST_SIDE, add_options, argparse_type
@@ -103,6 +103,7 @@ def build_parser() -> argparse.ArgumentParser:
         "most 64); a worker that dies loses at most its chunk",
     )
 
+    asked = CheckRequest(out="")  # the check's defaults, declared with what it is asked for
     k = sub.add_parser(
         "check",
         help="render both sides in chunks until the data decide: biased, equivalent, or the budget is spent",
@@ -134,7 +135,7 @@ def build_parser() -> argparse.ArgumentParser:
     k.add_argument(
         "--tolerance",
         type=tolerance_or_off,
-        default=0.01,
+        default=asked.tolerance,
         metavar="PERCENT",
         help="stop at `equivalent` once every tile of the finest tile size is bounded within this relative "
         "difference (default 1%%; `off`: stop only at `biased`, so that a bias smaller than any tolerance is found "
@@ -155,7 +156,7 @@ def build_parser() -> argparse.ArgumentParser:
         "`inconclusive` from an eighth of the budget when its tile size would need more than 4x the budget and no "
         "tile points to a bias; that stop gives up a bias found only late in the budget)",
     )
-    add_options(k, ("alpha",), defaults={"alpha": DEFAULT_ALPHA})
+    add_options(k, ("alpha",), defaults={"alpha": asked.alpha})
     budget = k.add_mutually_exclusive_group()
     add_options(
         budget,
@@ -168,7 +169,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_options(
         k,
         ("spp", "tile", "resolution", "device", "sampling_pattern", "lobes"),
-        defaults={"spp": 1, "tile": 16, "device": "CPU", "lobes": ()},
+        defaults={"spp": asked.spp, "tile": asked.tile, "device": asked.device, "lobes": asked.lobes},
         helps={"lobes": "also render light components and light groups (as render --lobes); the report tests each"},
     )
     add_options(k, TEST_SIDE, test=True)

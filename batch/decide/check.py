@@ -486,8 +486,59 @@ def _absolute(path: str | None) -> str | None:
     return None if path is None else os.path.abspath(path)
 
 
+@dataclass(frozen=True)
+class CheckRequest:
+    """What a check is asked for, as the command line (``check``'s arguments: `from_args`) and the Blender add-on
+    give it, values already checked; `check_job` makes the check of it. The defaults are the command line's."""
+
+    out: str
+    blend: str | None = None
+    scene: str | None = None
+    blend_scene: str | None = None
+    test_blend: str | None = None
+    test_blend_scene: str | None = None
+    overrides: tuple[str, ...] = ()
+    spp: int = 1
+    tile: int = 16
+    resolution: tuple[int, int] | None = None
+    device: str = "CPU"
+    sampling_pattern: str | None = None
+    lobes: tuple[str, ...] = ()
+    test_spp: int | None = None
+    test_device: str | None = None
+    test_sampling_pattern: str | None = None
+    blender: str | None = None
+    python: str | None = None
+    test_blender: str | None = None
+    test_python: str | None = None
+    pass_command: str | None = None
+    test_command: str | None = None
+    command_dir: str | None = None
+    max_passes: int | None = None  # None: DEFAULT_MAX_PASSES, unless max_seconds is given
+    max_seconds: float | None = None
+    alpha: float = 0.01
+    tolerance: float | None = 0.01
+    equivalence_tile: int | None = None
+    futility: bool = True
+    unpaired: bool = False
+    resume: bool = False
+    workers: int | None = None
+    scheduler: str | None = None
+
+    @classmethod
+    def from_args(cls, args) -> CheckRequest:
+        """The request of ``check``'s parsed command line."""
+        return cls(**{f.name: getattr(args, f.name) for f in dataclasses.fields(cls)})
+
+
 def check_job_from_args(args) -> CheckJob:
-    """The check the command line describes, refused in one line where it can't work, before anything renders."""
+    """The check the command line describes (`check_job` of its `CheckRequest`)."""
+    return check_job(CheckRequest.from_args(args))
+
+
+def check_job(request: CheckRequest) -> CheckJob:
+    """The check `request` describes, refused in one line where it can't work, before anything renders."""
+    args = request
     if args.max_passes is not None and args.max_seconds is not None:
         raise BatchError("give --max-passes or --max-seconds, not both")
     if args.blend is not None and args.scene is not None:
