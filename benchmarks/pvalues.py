@@ -109,7 +109,7 @@ def run(b, cache_dir: Path, out_dir: Path) -> dict:
 
 
 def error_table(nus=(2, 5, 10, 20, 100), levels=LEVELS) -> list[dict]:
-    """Relative error of each method's p where the exact p is `level`, at a few nu (for the README)."""
+    """Relative error of each method's p where the exact p is `level`, at a few nu (for docs/benchmarks/README.md)."""
     out = []
     for nu in nus:
         for level in levels:

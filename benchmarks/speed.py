@@ -21,7 +21,7 @@ report   Writing the demo's report (summary, report.json, report.html, pvalues.e
 lobes    A pass with the six light components (``--lobes``: the passes enabled, a multilayer EXR, six more tile
          sums) against a plain pass, on the glossy scene at 128x128 and 256x256 (no goal: the cost is stated).
 
-Nothing is asserted: the figures go into the README.
+Nothing is asserted: the figures go into docs/results.md.
 """
 
 from __future__ import annotations

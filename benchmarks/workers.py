@@ -19,8 +19,8 @@ takes ``S + P * (t - o)``, S its start-up. Its own measured pass time t1 is prin
 machine the speed drifts more between runs than Dask costs a pass. The speed-up ``(S + P * (t - o)) / T(N)`` is
 printed for a few P and N with the assumptions it rests on.
 
-Nothing is asserted: the figures go into the README. The machine may be shared: repeat before trusting a
-difference of a few per cent.
+Nothing is asserted: the figures go into docs/manual.md (Rendering on several processes or machines). The machine
+may be shared: repeat before trusting a difference of a few per cent.
 """
 
 from __future__ import annotations

@@ -285,7 +285,7 @@ def build_parser() -> argparse.ArgumentParser:
         "suite",
         help="a statistical render regression suite for CI: bless references once, run every case against them",
         description="A suite file (TOML) lists cases: a scene, overrides, resolution, spp, tile, a budget, devices "
-        "and an optional tolerance (see batch/suite.py or the README). `suite bless` renders each case's "
+        "and an optional tolerance (see batch/decide/suite.py or docs/suite.md). `suite bless` renders each case's "
         "reference; `suite run` renders each case with the current build on new seeds and decides it against "
         "its reference with the render-until-decided engine, writing junit.xml, summary.json and a dashboard "
         "(index.html). SUITE may be `builtin`: one minimal scene per Cycles feature, with shipped references.",
