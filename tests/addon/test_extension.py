@@ -16,7 +16,7 @@ import pytest
 
 from blender_addon import build
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 MANIFEST = tomllib.loads((ROOT / "blender_manifest.toml").read_text(encoding="utf-8"))
 EXTENSION_TOP_LEVEL = {"__init__.py", "blender_manifest.toml", "blender_addon", "welch_core", "batch", "wheels"}
 

@@ -22,7 +22,7 @@ import pytest
 import welch_core
 from blender_addon import build
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 BLENDER = "/usr/bin/blender"
 MODULE = "welch_bias"  # the legacy package's name, the manifest's id
 SCREENSHOT = ROOT / "docs" / "screenshots" / "addon_blender34.png"

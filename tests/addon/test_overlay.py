@@ -1,6 +1,6 @@
 """The overlay inside the bpy module: its vertices (tile positions, colours, outlines), which images it covers,
 the draw handler's registration, and how a draw that fails degrades. Drawing itself needs a GPU context, which
-the bpy module never has: tests/test_addon_gui.py looks at it in a real Blender window."""
+the bpy module never has: tests/addon/test_gui.py looks at it in a real Blender window."""
 
 import dataclasses
 import sys

@@ -16,7 +16,7 @@ from batch import cli
 from batch.blender.scenes import WALL_COLOR_PATH
 from batch.jobs import protocol
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SMALL = ("--scene", "corner", "--resolution", 64, 64)
 
 

@@ -18,7 +18,7 @@ from batch import cli
 from batch.jobs.protocol import Exit
 from batch.jobs.seeds import format_seeds, parse_seeds
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def write_passes(folder: Path, seeds, scale=1.0, shape=(64, 96)) -> list[str]:

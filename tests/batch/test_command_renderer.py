@@ -23,7 +23,7 @@ from batch.jobs import command
 from batch.jobs.job import RenderJob
 from tests.test_pytest_plugin import installed, pytest_in
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 MITSUBA_EXAMPLE = ROOT / "docs" / "examples" / "mitsuba"
 
 #: A renderer of our own: Gaussian noise about 1 (+ shift=X), 32x48, one pass per seed, written with write_exr.

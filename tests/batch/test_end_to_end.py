@@ -18,7 +18,7 @@ from batch.blender.run import RunError, render_passes
 from batch.blender.scenes import WALL_COLOR_PATH
 from batch.present.progress import Progress
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.slow
 
 

@@ -12,7 +12,7 @@ import pytest
 from batch.jobs import protocol
 from batch.present.progress import Progress
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 EVERY_EVENT = [
     protocol.Started(total=8, todo=5, out="runs/ref.npz"),

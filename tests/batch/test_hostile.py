@@ -24,7 +24,7 @@ from batch.jobs.protocol import Exit
 from batch.present.junit import junit_xml
 from batch.present.pipeline import present
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def save(path, sums, seeds, height, width, tile, info=None):

@@ -1,7 +1,7 @@
 """Data integrity under hostile input and faults, through the public command line: one writer per output, exit
 codes that mean one thing, interrupts that stop the work, paths and terminals of every kind, atomic writes.
-The classes of failure each have a test with the exact message (file contents are in test_core_formats.py,
-EXR input in test_core_exr.py, run identity in test_core_tiles.py)."""
+The classes of failure each have a test with the exact message (file contents are in core/test_formats.py,
+EXR input in core/test_exr.py, run identity in core/test_tiles.py)."""
 
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ from batch.errors import BatchError
 from batch.jobs.lock import OutputLock
 from batch.jobs.protocol import Exit
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def batch(*args, cwd=ROOT, env=None, check=None) -> subprocess.CompletedProcess:

@@ -16,7 +16,7 @@ from batch.errors import BatchError
 from batch.jobs import launch
 from batch.jobs.job import RenderJob, add_arguments
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 #: A job with every field away from its default.
 FULL = RenderJob(

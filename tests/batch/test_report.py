@@ -15,9 +15,9 @@ import pytest
 
 import welch_core as wc
 from batch.present import report, summary
-from tests.synthetic import scene_means, tile_sum_samples
+from tests.helpers.synthetic import scene_means, tile_sum_samples
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def runs_with_pictures(bias=1.1, n=16):

@@ -20,7 +20,7 @@ from batch.errors import BatchError
 from batch.present.junit import junit_xml
 from welch_core import Verdict
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from batch.present import summary
-from tests.synthetic import make_run, scene_means, tile_sum_samples
+from tests.helpers.synthetic import make_run, scene_means, tile_sum_samples
 from welch_core import RunInfo, compare
 
 

@@ -17,7 +17,7 @@ import welch_core as wc
 from benchmarks import checks
 from benchmarks.equivalence import Model
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 SIZE, TILE = 64, 16
 
 

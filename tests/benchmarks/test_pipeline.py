@@ -14,7 +14,7 @@ import pytest
 
 pytest.importorskip("bpy")
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.mark.slow

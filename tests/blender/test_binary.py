@@ -17,7 +17,7 @@ import pytest
 import welch_core as wc
 from batch.jobs import protocol
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 BLENDER = shutil.which("blender")
 
 

@@ -20,7 +20,7 @@ from batch.jobs.job import RenderJob
 from batch.jobs.launch import bpy_version, job_command
 from batch.jobs.protocol import Exit
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 #: The second release the tests render with (an LTS with the same Python as the tool's bpy).
 RELEASE = os.environ.get("WELCH_TEST_BPY", "4.5.4")
 

@@ -7,7 +7,7 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 from scipy import stats
 
-from tests.synthetic import make_run, scene_means, tile_sum_samples
+from tests.helpers.synthetic import make_run, scene_means, tile_sum_samples
 from welch_core import (
     TESTS,
     GridMismatchError,
@@ -436,7 +436,7 @@ def test_equivalent_is_calibrated_when_the_bias_equals_the_tolerance():
     """The worst case for a false `equivalent`: every tile off by exactly the tolerance. 1000 trials at alpha =
     0.05, tolerance 2 %, with enough passes that the intervals are near the tolerance: `equivalent` must come out
     in at most alpha of them (99.9 % binomial limit). Measured: 0 of 1000 (every tile at the boundary must be
-    bounded at once; the worst case, one tile at the tolerance, is in tests/test_core_decision.py)."""
+    bounded at once; the worst case, one tile at the tolerance, is in tests/core/test_decision.py)."""
     rng = np.random.default_rng(66)
     m = scene_means(2, 2)
     trials, equivalent = 1000, 0

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from tests.synthetic import make_run, scene_means, tile_sum_samples
+from tests.helpers.synthetic import make_run, scene_means, tile_sum_samples
 from welch_core import RunInfo, SequentialPlan, TileStats, WelchInputError, compare, look_schedule, sequential_look
 from welch_core.decision import identical_passes
 from welch_core.looks import information_fraction

@@ -153,7 +153,7 @@ def test_a_failed_write_prints_nothing_afterwards(tmp_path):
     import subprocess
     import sys
 
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    root = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, cwd=root)
     assert "No space left on device" in done.stdout
     assert done.stderr == ""

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from tests.synthetic import make_run, scene_means, tile_sum_samples
+from tests.helpers.synthetic import make_run, scene_means, tile_sum_samples
 from welch_core import SequentialPlan, TileStats, WelchInputError, compare, look_schedule, sequential_look
 from welch_core.looks import EARLY_PASSES, EARLY_SHARE, biased_levels, information_fraction
 from welch_core.sequential import boundaries, nominal_levels
