@@ -21,7 +21,7 @@ import welch_core as wc
 from batch.errors import BatchError
 from batch.jobs import command
 from batch.jobs.job import RenderJob
-from tests.test_pytest_plugin import installed, pytest_in
+from tests.helpers.pytest_runs import pytest_in, skip_unless_plugin_installed
 
 ROOT = Path(__file__).resolve().parents[2]
 MITSUBA_EXAMPLE = ROOT / "docs" / "examples" / "mitsuba"
@@ -248,8 +248,7 @@ def test_a_mitsuba_suite_through_the_pytest_plugin(tmp_path):
     reason = mitsuba_missing()
     if reason:
         pytest.skip(reason)
-    if not installed():
-        pytest.skip("the welch-bias package is not installed (./dev installs it): its pytest11 entry point is missing")
+    skip_unless_plugin_installed()
     for name in ("render.py", "welch_mitsuba.toml"):
         shutil.copy(MITSUBA_EXAMPLE / name, tmp_path / name)
     blessed = pytest_in(tmp_path, "--welch-bless")

@@ -4,12 +4,11 @@ file, pytest run there with the installed package's plugin. Renders with Cycles 
 from __future__ import annotations
 
 import re
-import subprocess
-import sys
 import xml.etree.ElementTree as ET
-from importlib import metadata
 
 import pytest
+
+from tests.helpers.pytest_runs import pytest_in, skip_unless_plugin_installed
 
 pytestmark = pytest.mark.slow
 
@@ -29,23 +28,12 @@ why = "the smallest scene with direct and indirect light"
 """
 
 
-def installed() -> bool:
-    return any(e.name == "welch" for e in metadata.entry_points(group="pytest11"))
-
-
 @pytest.fixture
 def project(tmp_path):
-    if not installed():
-        pytest.skip("the welch-bias package is not installed (./dev installs it): its pytest11 entry point is missing")
+    skip_unless_plugin_installed()
     pytest.importorskip("bpy")
     (tmp_path / "welch_smoke.toml").write_text(SUITE)
     return tmp_path
-
-
-def pytest_in(folder, *args) -> subprocess.CompletedProcess:
-    """pytest in `folder`, its temporary files (the reports) inside it: not among this run's, which it would prune."""
-    argv = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-rA", "--basetemp", str(folder / "tmp")]
-    return subprocess.run([*argv, *args], cwd=folder, capture_output=True, text=True, timeout=600)
 
 
 def test_cases_are_tests_blessed_once_and_a_planted_change_fails(project):

@@ -130,7 +130,7 @@ def test_a_report_with_layers_and_untestable_scales_is_drawn(page, tmp_path):
     """Layers (ingest --layers) and a run whose coarsest scales have no p-value (null in the page's data): the page
     draws, shows a row per layer, and no script error occurs."""
     from batch import cli
-    from tests.test_batch_lobes import ingest_layers
+    from tests.helpers.layers import ingest_layers
 
     ref = ingest_layers(tmp_path, "ref", range(0, 12))
     test = ingest_layers(tmp_path, "test", range(100, 112), glossy_scale=1.2)
