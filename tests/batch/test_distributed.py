@@ -29,6 +29,7 @@ from batch.jobs.job import RenderJob  # noqa: E402
 from batch.jobs.protocol import ChunkRequest, parse_request  # noqa: E402
 from batch.jobs.side import run_job  # noqa: E402
 from batch.present.progress import Progress  # noqa: E402
+from tests.helpers.renderers import NanEverySecondPass  # noqa: E402
 
 #: A job of passes slow enough (~0.05-0.1 s each here) that a chunk of 6 can be caught in the middle.
 SEEDS = tuple(range(24))
@@ -116,16 +117,6 @@ def test_chunk_result_round_trips():
     assert (back.height, back.width, back.tile) == (40, 48, 16)
 
 
-class _NanEverySecondPass:
-    """Stands in for PassRenderer (Cycles can't be made to return NaN): odd seeds give a NaN pixel."""
-
-    def render(self, seed):
-        image = np.full((32, 32, 3), 0.5, np.float32) + np.random.default_rng(seed).random((32, 32, 3), np.float32)
-        if seed % 2:
-            image[1, 2, 0] = np.nan
-        return image
-
-
 @pytest.mark.parametrize(("policy", "seeds"), [("skip", [4, 6]), ("keep", [3, 4, 5, 6])])
 def test_a_served_chunk_holds_exactly_its_seeds(tmp_path, policy, seeds):
     from batch.blender.run import _render_chunk  # imports bpy
@@ -134,7 +125,7 @@ def test_a_served_chunk_holds_exactly_its_seeds(tmp_path, policy, seeds):
     like = wc.TileStats(32, 32, 16, 3, wc.RunInfo(spp=16, scene="corner"))
     progress = Recorder(10)
     out = tmp_path / "chunk.npz"
-    _render_chunk(job, _NanEverySecondPass(), ChunkRequest((3, 4, 5, 6), str(out)), like, progress, None)
+    _render_chunk(job, NanEverySecondPass(), ChunkRequest((3, 4, 5, 6), str(out)), like, progress, None)
     chunk = wc.load_stats(out)
     assert chunk.seeds == seeds and chunk.info == like.info and like.n == 0
     assert progress.events[-1] == protocol.Saved(out=str(out), passes=len(seeds))
@@ -149,10 +140,10 @@ def test_a_served_chunk_that_fails_keeps_its_passes_and_refuses_foreign_seeds(tm
     like = wc.TileStats(32, 32, 16, 3, wc.RunInfo(spp=16))
     out = tmp_path / "chunk.npz"
     with pytest.raises(RunError, match="pass with seed 5 has 1 non-finite pixel values"):
-        _render_chunk(job, _NanEverySecondPass(), ChunkRequest((4, 5, 6), str(out)), like, Recorder(10), None)
+        _render_chunk(job, NanEverySecondPass(), ChunkRequest((4, 5, 6), str(out)), like, Recorder(10), None)
     assert wc.load_stats(out).seeds == [4]  # the worker drops it: the chunk renders again or the run stops
     with pytest.raises(RunError, match="a chunk asks for seed 12, which is not in --seeds of this job"):
-        _render_chunk(job, _NanEverySecondPass(), ChunkRequest((8, 12), str(out)), like, Recorder(10), None)
+        _render_chunk(job, NanEverySecondPass(), ChunkRequest((8, 12), str(out)), like, Recorder(10), None)
 
 
 class _Finished:

@@ -17,6 +17,7 @@ import welch_core as wc
 from batch.blender.run import RunError, render_passes
 from batch.blender.scenes import WALL_COLOR_PATH
 from batch.present.progress import Progress
+from tests.helpers.renderers import NanEverySecondPass
 
 ROOT = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.slow
@@ -229,20 +230,10 @@ def test_lint_of_a_factory_scene(tmp_path):
     assert "sample_clamp_indirect" in done.stdout and "blur_glossy" in done.stdout
 
 
-class _NanEverySecondPass:
-    """Stands in for PassRenderer where Cycles can't be made to return NaN: the loop's NaN policy is under test."""
-
-    def render(self, seed):
-        image = np.full((32, 32, 3), 0.5, np.float32) + np.random.default_rng(seed).random((32, 32, 3), np.float32)
-        if seed % 2:
-            image[1, 2, 0] = np.nan
-        return image
-
-
 @pytest.mark.parametrize(("policy", "count"), [("skip", 2), ("keep", 4)])
 def test_nan_passes_skip_or_keep(tmp_path, policy, count):
     stats = wc.TileStats(32, 32, 16)
-    render_passes(_NanEverySecondPass(), [0, 1, 2, 3], stats, Progress(4), policy, str(tmp_path / "x.npz"))
+    render_passes(NanEverySecondPass(), [0, 1, 2, 3], stats, Progress(4), policy, str(tmp_path / "x.npz"))
     assert stats.n == count and wc.load_stats(tmp_path / "x.npz").n == count
 
 
@@ -250,7 +241,7 @@ def test_nan_pass_stops_the_run_and_keeps_what_was_done(tmp_path):
     stats = wc.TileStats(32, 32, 16)
     out = tmp_path / "x.npz"
     with pytest.raises(RunError, match="pass with seed 1 has 1 non-finite pixel values"):
-        render_passes(_NanEverySecondPass(), [0, 1, 2], stats, Progress(3), "stop", str(out))
+        render_passes(NanEverySecondPass(), [0, 1, 2], stats, Progress(3), "stop", str(out))
     assert wc.load_stats(out).seeds == [0]
     assert os.path.getsize(out) > 0
 
