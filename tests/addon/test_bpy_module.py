@@ -22,15 +22,7 @@ SIZE = 64
 TILE = 16
 
 
-@pytest.fixture(scope="module", autouse=True)
-def addon(tmp_path_factory):
-    # Outside an installed extension the add-on writes its runs under the temporary folder.
-    saved_tempdir = tempfile.tempdir
-    tempfile.tempdir = str(tmp_path_factory.mktemp("addon_tmp"))
-    blender_addon.register()
-    yield
-    blender_addon.unregister()
-    tempfile.tempdir = saved_tempdir
+pytestmark = pytest.mark.usefixtures("addon")  # registered for the module (tests/addon/conftest.py)
 
 
 @pytest.fixture

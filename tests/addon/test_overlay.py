@@ -4,7 +4,6 @@ the bpy module never has: tests/addon/test_gui.py looks at it in a real Blender 
 
 import dataclasses
 import sys
-import tempfile
 from types import SimpleNamespace
 
 import numpy as np
@@ -22,14 +21,7 @@ SIZE = 64
 TILE = 16
 
 
-@pytest.fixture(scope="module", autouse=True)
-def addon(tmp_path_factory):
-    saved_tempdir = tempfile.tempdir
-    tempfile.tempdir = str(tmp_path_factory.mktemp("addon_tmp"))
-    blender_addon.register()
-    yield
-    blender_addon.unregister()
-    tempfile.tempdir = saved_tempdir
+pytestmark = pytest.mark.usefixtures("addon")  # registered for the module (tests/addon/conftest.py)
 
 
 @pytest.fixture
