@@ -17,6 +17,7 @@ import welch_core  # noqa: E402
 from blender_addon import checks, results, runner, session, ui  # noqa: E402
 from blender_addon.state import RunFolder  # noqa: E402
 from blender_addon.state import current as state  # noqa: E402
+from tests.helpers.synthetic import write_grey_stats  # noqa: E402
 
 SIZE = 64
 TILE = 16
@@ -44,18 +45,6 @@ def scene():
     window.scene = previous
     bpy.data.scenes.remove(new)
     bpy.data.objects.remove(camera)
-
-
-def write_stats(path, seeds, bias=0.0, size=SIZE, tile=TILE, seed=0):
-    """Synthetic passes: grey 0.2 with noise; ``bias`` scales the top-left quarter of the test side."""
-    rng = np.random.default_rng(seed)
-    stats = welch_core.TileStats(size, size, tile, 3, welch_core.RunInfo(spp=1, renderer="synthetic"))
-    for s in seeds:
-        image = 0.2 + rng.normal(0.0, 0.05, (size, size, 3))
-        image[: size // 2, : size // 2] *= 1.0 + bias
-        stats.add_pass(image.astype(np.float32), s)
-    welch_core.save_stats(path, stats)
-    return str(path)
 
 
 def read_pixels(image):
@@ -264,8 +253,8 @@ def test_run_refuses_a_scene_without_camera(scene):
 def test_compare_files_builds_the_result_image_and_summary(scene, tmp_path):
     settings = scene.welch_bias
     settings.mode = "STATS_FILES"
-    settings.reference_file = write_stats(tmp_path / "ref.npz", range(0, 16), seed=1)
-    settings.test_file = write_stats(tmp_path / "test.npz", range(16, 32), bias=0.3, seed=2)
+    settings.reference_file = write_grey_stats(tmp_path / "ref.npz", range(0, 16), seed=1)
+    settings.test_file = write_grey_stats(tmp_path / "test.npz", range(16, 32), bias=0.3, seed=2)
     assert bpy.ops.welch_bias.run() == {"FINISHED"}
     result = state.result
     assert result["verdict"] == "biased" and result["verdict_title"] == "Biased" and result["verdict_icon"] == "ERROR"
@@ -305,11 +294,11 @@ def test_compare_files_builds_the_result_image_and_summary(scene, tmp_path):
 def test_compare_files_without_bias_and_paired(scene, tmp_path):
     settings = scene.welch_bias
     settings.mode = "STATS_FILES"
-    settings.reference_file = write_stats(tmp_path / "ref.npz", range(0, 16), seed=3)
-    settings.test_file = write_stats(tmp_path / "test.npz", range(16, 32), seed=4)
+    settings.reference_file = write_grey_stats(tmp_path / "ref.npz", range(0, 16), seed=3)
+    settings.test_file = write_grey_stats(tmp_path / "test.npz", range(16, 32), seed=4)
     bpy.ops.welch_bias.run()
     assert state.result["verdict"] == "no_evidence"
-    settings.test_file = write_stats(tmp_path / "paired.npz", range(0, 16), seed=5)
+    settings.test_file = write_grey_stats(tmp_path / "paired.npz", range(0, 16), seed=5)
     bpy.ops.welch_bias.run()
     assert state.result["test"] == "paired"
 
@@ -317,8 +306,8 @@ def test_compare_files_without_bias_and_paired(scene, tmp_path):
 def test_result_image_shows_in_an_image_editor(scene, tmp_path):
     settings = scene.welch_bias
     settings.mode = "STATS_FILES"
-    settings.reference_file = write_stats(tmp_path / "ref.npz", range(0, 8))
-    settings.test_file = write_stats(tmp_path / "test.npz", range(8, 16))
+    settings.reference_file = write_grey_stats(tmp_path / "ref.npz", range(0, 8))
+    settings.test_file = write_grey_stats(tmp_path / "test.npz", range(8, 16))
     area = next(a for a in bpy.context.screen.areas if a.type != "PROPERTIES")
     old_type = area.type
     area.type = "IMAGE_EDITOR"
@@ -332,15 +321,15 @@ def test_result_image_shows_in_an_image_editor(scene, tmp_path):
 @pytest.mark.parametrize(
     "make_test, message",
     [
-        (lambda p: write_stats(p, range(16, 24), size=32), "statistics have different grids"),
-        (lambda p: write_stats(p, range(4, 12)), "the runs share 4 seeds but not all"),
+        (lambda p: write_grey_stats(p, range(16, 24), size=32), "statistics have different grids"),
+        (lambda p: write_grey_stats(p, range(4, 12)), "the runs share 4 seeds but not all"),
         (lambda p: (p.write_text("not a statistics file"), str(p))[1], "is not a readable statistics file"),
     ],
 )
 def test_compare_files_reports_bad_input_in_one_line(scene, tmp_path, make_test, message):
     settings = scene.welch_bias
     settings.mode = "STATS_FILES"
-    settings.reference_file = write_stats(tmp_path / "ref.npz", range(0, 8))
+    settings.reference_file = write_grey_stats(tmp_path / "ref.npz", range(0, 8))
     settings.test_file = make_test(tmp_path / "test.npz")
     with pytest.raises(RuntimeError, match=message):
         bpy.ops.welch_bias.run()
@@ -349,8 +338,8 @@ def test_compare_files_reports_bad_input_in_one_line(scene, tmp_path, make_test,
 
 
 def test_result_rgba_is_bottom_up_with_alpha(tmp_path):
-    reference = welch_core.load_stats(write_stats(tmp_path / "r.npz", range(0, 8)))
-    test = welch_core.load_stats(write_stats(tmp_path / "t.npz", range(8, 16), bias=0.5))
+    reference = welch_core.load_stats(write_grey_stats(tmp_path / "r.npz", range(0, 8)))
+    test = welch_core.load_stats(write_grey_stats(tmp_path / "t.npz", range(8, 16), bias=0.5))
     comparison = welch_core.compare(reference, test, alpha=0.01)
     rgba = results.result_rgba(comparison, test, "MIN", "R", 1.0)
     assert rgba.shape == (SIZE, SIZE, 4) and rgba.dtype == np.float32 and rgba.flags.c_contiguous
@@ -445,8 +434,8 @@ def test_disabling_the_addon_stops_a_running_render(scene, tmp_path):
 def test_panel_with_a_result(scene, tmp_path, bias, verdict):
     settings = scene.welch_bias
     settings.mode = "STATS_FILES"
-    settings.reference_file = write_stats(tmp_path / "ref.npz", range(0, 16), seed=6)
-    settings.test_file = write_stats(tmp_path / "test.npz", range(16, 32), bias=bias, seed=7)
+    settings.reference_file = write_grey_stats(tmp_path / "ref.npz", range(0, 16), seed=6)
+    settings.test_file = write_grey_stats(tmp_path / "test.npz", range(16, 32), bias=bias, seed=7)
     bpy.ops.welch_bias.run()
     layout = draw_panel()
     texts = layout.texts()
@@ -472,8 +461,8 @@ def test_panel_with_a_result(scene, tmp_path, bias, verdict):
 def test_panel_in_blender_34_uses_boxes_and_block_bars(scene, tmp_path):
     settings = scene.welch_bias
     settings.mode = "STATS_FILES"
-    settings.reference_file = write_stats(tmp_path / "ref.npz", range(0, 16), seed=8)
-    settings.test_file = write_stats(tmp_path / "test.npz", range(16, 32), bias=0.3, seed=9)
+    settings.reference_file = write_grey_stats(tmp_path / "ref.npz", range(0, 16), seed=8)
+    settings.test_file = write_grey_stats(tmp_path / "test.npz", range(16, 32), bias=0.3, seed=9)
     bpy.ops.welch_bias.run()
     layout = draw_panel(FakeLayout34)
     kinds = {kind for kind, _ in layout.calls}

@@ -19,8 +19,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import welch_core
 from blender_addon import build
+from tests.helpers.synthetic import write_grey_stats
 
 ROOT = Path(__file__).resolve().parents[2]
 BLENDER = "/usr/bin/blender"
@@ -66,18 +66,6 @@ def missing_blender_34(gui: bool) -> str | None:
 @pytest.fixture(scope="module")
 def legacy_zip(tmp_path_factory) -> Path:
     return build.build_legacy(tmp_path_factory.mktemp("legacy"))
-
-
-def write_stats(path, seeds, bias=0.0, seed=0) -> str:
-    """Synthetic passes: grey 0.2 with noise; ``bias`` scales the top-left quarter."""
-    rng = np.random.default_rng(seed)
-    stats = welch_core.TileStats(SIZE, SIZE, TILE, 3, welch_core.RunInfo(spp=1, renderer="synthetic"))
-    for s in seeds:
-        image = 0.2 + rng.normal(0.0, 0.05, (SIZE, SIZE, 3))
-        image[: SIZE // 2, : SIZE // 2] *= 1.0 + bias
-        stats.add_pass(image.astype(np.float32), s)
-    welch_core.save_stats(path, stats)
-    return str(path)
 
 
 def report_of(done: subprocess.CompletedProcess, path: Path) -> dict:
@@ -129,8 +117,8 @@ def test_legacy_addon_compares_statistics_files_in_blender_34(tmp_path, legacy_z
     reason = missing_blender_34(gui=False)
     if reason:
         pytest.skip(reason)
-    reference = write_stats(tmp_path / "ref.npz", range(0, 16), seed=1)
-    test = write_stats(tmp_path / "test.npz", range(16, 32), bias=0.3, seed=2)
+    reference = write_grey_stats(tmp_path / "ref.npz", range(0, 16), seed=1)
+    test = write_grey_stats(tmp_path / "test.npz", range(16, 32), bias=0.3, seed=2)
     (tmp_path / "script.py").write_text(BACKGROUND_SCRIPT, encoding="utf-8")
     command = [BLENDER, "-b", "--factory-startup", "--python", str(tmp_path / "script.py")]
     command += ["--", str(legacy_zip), MODULE, reference, test, str(tmp_path / "report.json")]

@@ -16,6 +16,7 @@ import welch_core  # noqa: E402
 from batch.present.pipeline import assess  # noqa: E402
 from blender_addon import overlay, results, ui  # noqa: E402
 from blender_addon.state import current as state  # noqa: E402
+from tests.helpers.synthetic import grey_stats  # noqa: E402
 
 SIZE = 64
 TILE = 16
@@ -35,20 +36,9 @@ def settings():
     state.reset()
 
 
-def make_stats(seeds, bias=0.0, width=SIZE, height=SIZE, seed=0):
-    """Grey 0.2 passes with noise; ``bias`` scales the top-left quarter."""
-    rng = np.random.default_rng(seed)
-    stats = welch_core.TileStats(height, width, TILE, 3, welch_core.RunInfo(spp=1, renderer="synthetic"))
-    for s in seeds:
-        image = 0.2 + rng.normal(0.0, 0.05, (height, width, 3))
-        image[: height // 2, : width // 2] *= 1.0 + bias
-        stats.add_pass(image.astype(np.float32), s)
-    return stats
-
-
 def biased_comparison(width=SIZE, height=SIZE):
-    reference = make_stats(range(0, 16), width=width, height=height, seed=1)
-    test = make_stats(range(16, 32), bias=0.3, width=width, height=height, seed=2)
+    reference = grey_stats(range(0, 16), width=width, height=height, seed=1)
+    test = grey_stats(range(16, 32), bias=0.3, width=width, height=height, seed=2)
     return welch_core.compare(reference, test, alpha=0.01), reference, test
 
 
@@ -234,8 +224,8 @@ def test_a_run_keeps_a_render_under_the_overlay_on_screen(settings, tmp_path, mo
     from blender_addon import operators
 
     reference, test = tmp_path / "ref.npz", tmp_path / "test.npz"
-    welch_core.save_stats(reference, make_stats(range(0, 16), seed=3))
-    welch_core.save_stats(test, make_stats(range(16, 32), bias=0.3, seed=4))
+    welch_core.save_stats(reference, grey_stats(range(0, 16), seed=3))
+    welch_core.save_stats(test, grey_stats(range(16, 32), bias=0.3, seed=4))
     area = next(a for a in bpy.context.screen.areas if a.type == "VIEW_3D")
     area.type = "IMAGE_EDITOR"
     render = bpy.data.images.new("Welch Overlay Render", SIZE, SIZE)

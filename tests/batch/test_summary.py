@@ -6,18 +6,12 @@ import numpy as np
 import pytest
 
 from batch.present import summary
-from tests.helpers.synthetic import make_run, scene_means, tile_sum_samples
+from tests.helpers.synthetic import make_run, one_bright_tile, scene_means, tile_sum_samples
 from welch_core import RunInfo, compare
 
 
 def test_top_tile_of_a_large_local_bias():
-    rng = np.random.default_rng(38)
-    m = scene_means()
-    shift = np.ones_like(m)
-    shift[5, 2] = 1.2  # one tile 20 % too bright
-    c = compare(
-        make_run(tile_sum_samples(rng, 20, m), range(20)), make_run(tile_sum_samples(rng, 20, m, shift), range(20, 40))
-    )
+    c = compare(*one_bright_tile())
     top = summary.top_tiles(c)[0]
     assert (top["row"], top["col"], top["x"], top["y"], top["size"]) == (5, 2, 64, 160, 32)
     assert top["significant"] and top["trusted"] and not top["decided"] and top["within"] is None

@@ -7,7 +7,7 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 from scipy import stats
 
-from tests.helpers.synthetic import make_run, scene_means, tile_sum_samples
+from tests.helpers.synthetic import make_run, one_bright_tile, scene_means, tile_sum_samples
 from welch_core import (
     TESTS,
     GridMismatchError,
@@ -149,13 +149,7 @@ def test_verdict_no_evidence_under_h0():
 
 
 def test_verdict_biased_on_a_large_local_bias():
-    rng = np.random.default_rng(38)
-    m = scene_means()
-    shift = np.ones_like(m)
-    shift[5, 2] = 1.2  # one tile 20 % too bright
-    c = compare(
-        make_run(tile_sum_samples(rng, 20, m), range(20)), make_run(tile_sum_samples(rng, 20, m, shift), range(20, 40))
-    )
+    c = compare(*one_bright_tile())
     assert c.verdict == "biased"
     assert c.p_value <= 0.01
     assert c.significant[5, 2] and c.significant.sum() == 1

@@ -1,8 +1,9 @@
-"""Synthetic Welch samples for the tests of the comparison and its summaries."""
+"""Synthetic data: Welch samples (tile sums) for the tests of the comparison and its summaries, and grey passes
+with a planted bias for the add-on's tests."""
 
 import numpy as np
 
-from welch_core import TileStats
+from welch_core import RunInfo, TileStats, save_stats
 
 TILE = 32
 
@@ -33,3 +34,31 @@ def scene_means(ty=8, tx=8):
 def make_run(sums, seeds, tile=TILE, info=None):
     ty, tx = sums.shape[1:3]
     return TileStats.from_sums(sums, list(seeds), ty * tile, tx * tile, tile, info)
+
+
+def one_bright_tile():
+    """Runs of 20 passes a side, the test side's tile (5, 2) 20 % too bright and nothing else biased."""
+    rng = np.random.default_rng(38)
+    m = scene_means()
+    shift = np.ones_like(m)
+    shift[5, 2] = 1.2
+    return make_run(tile_sum_samples(rng, 20, m), range(20)), make_run(
+        tile_sum_samples(rng, 20, m, shift), range(20, 40)
+    )
+
+
+def grey_stats(seeds, bias=0.0, width=64, height=64, tile=16, seed=0):
+    """Passes of grey 0.2 with noise, one a seed; ``bias`` scales the top-left quarter."""
+    rng = np.random.default_rng(seed)
+    stats = TileStats(height, width, tile, 3, RunInfo(spp=1, renderer="synthetic"))
+    for s in seeds:
+        image = 0.2 + rng.normal(0.0, 0.05, (height, width, 3))
+        image[: height // 2, : width // 2] *= 1.0 + bias
+        stats.add_pass(image.astype(np.float32), s)
+    return stats
+
+
+def write_grey_stats(path, seeds, bias=0.0, size=64, tile=16, seed=0) -> str:
+    """grey_stats of a square image, saved to `path`; returns the path as a string."""
+    save_stats(path, grey_stats(seeds, bias, size, size, tile, seed))
+    return str(path)
