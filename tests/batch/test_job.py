@@ -132,17 +132,6 @@ def test_a_built_in_scene_starts_blender_from_factory_settings():
     assert parse(cli.argv_after_dashdash(argv)[1:-1]) == job.replace(blender=None)
 
 
-def test_the_entry_script_parses_the_arguments_after_dashdash():
-    """The entry script, run as Blender runs it (a plain script), hands the arguments after -- to the tool."""
-    code = (
-        "import runpy, sys; sys.argv = ['blender', '-b', '--python', 'x.py', '--', 'compare', '--help'];"
-        f"runpy.run_path({str(ROOT / 'batch' / 'blender_entry.py')!r}, run_name='__main__')"
-    )
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd="/")
-    assert done.returncode == 0, done.stderr
-    assert "REF TEST" in done.stdout and "--paired" in done.stdout
-
-
 def test_the_render_path_imports_no_scipy_and_no_openexr():
     """Inside a stock Blender only numpy is there: parsing a render job and reading a pass must not need more."""
     code = (
