@@ -7,8 +7,8 @@
 Charts: 1 detection rate against render time, 2 p-value methods, 3 stability on unbiased pairs, 4 cost, 5 render
 seconds to a decision (`check` against the best fixed design), 6 A/A runs of `check`, 7 multi-scale tiles against
 fixed tile sizes, 8 passes to `equivalent` at each scale against a known-variance oracle. ``--quick`` alone runs
-charts 1-4 (tests/test_benchmarks.py counts their four PNGs);
-``--quick --charts 5 6 7 8`` checks the others (tests/test_benchmarks_decision.py).
+charts 1-4 (tests/benchmarks/test_pipeline.py counts their four PNGs);
+``--quick --charts 5 6 7 8`` checks the others (tests/benchmarks/test_decision.py).
 """
 
 from __future__ import annotations

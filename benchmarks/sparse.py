@@ -9,7 +9,7 @@ of a tile (an indirect clamp that clips only the rare bright caustic or subsurfa
 changed pool rendered with the same seeds. A trial draws n passes: the same seeds from both pools for the paired
 tests, disjoint seeds for Welch's. `compare` decides at alpha 0.01 (a fixed design). "paired alone" is the paired
 test as it was before the Welch rule: its non-normal tiles left untrusted. Every change here is a real bias, so
-the share of `biased` is the power; the false-positive side is in tests/test_core_sparse_pairs.py (synthetic
+the share of `biased` is the power; the false-positive side is in tests/core/test_sparse_pairs.py (synthetic
 pairs, fixed design and `check`'s stopping rule), since two renders of one setting with the same seeds are
 identical.
 """
