@@ -77,6 +77,19 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
+    _add_render(sub)
+    _add_check(sub)
+    _add_ingest(sub)
+    _add_compare(sub)
+    _add_merge(sub)
+    _add_suite(sub)
+    _add_matrix(sub)
+    _add_bpy(sub)
+    return parser
+
+
+def _add_render(sub) -> None:
+    """``render``: passes of one run into a statistics file."""
     r = sub.add_parser(
         "render",
         help="render passes with Cycles into a statistics file",
@@ -103,6 +116,9 @@ def build_parser() -> argparse.ArgumentParser:
         "most 64); a worker that dies loses at most its chunk",
     )
 
+
+def _add_check(sub) -> None:
+    """``check``: both sides rendered until the data decide."""
     asked = CheckRequest(out="")  # the check's defaults, declared with what it is asked for
     k = sub.add_parser(
         "check",
@@ -179,6 +195,9 @@ def build_parser() -> argparse.ArgumentParser:
     k.add_argument("--json-progress", action="store_true", help="one JSON line per event on stdout, for programs")
     k.add_argument("--out", required=True, metavar="DIR", help="folder for both sides' statistics and the report")
 
+
+def _add_ingest(sub) -> None:
+    """``ingest``: passes another renderer wrote as EXR files."""
     i = sub.add_parser(
         "ingest",
         help="turn EXR passes of any renderer into a statistics file",
@@ -205,6 +224,9 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("--on-nan", default="stop", choices=jobs.ON_NAN)
     i.add_argument("--out", required=True, metavar="STATS", help="statistics file to write (must not exist)")
 
+
+def _add_compare(sub) -> None:
+    """``compare`` and ``selftest``: reports of statistics files."""
     for name, text in (
         ("compare", "compare two runs: is TEST biased against REF?"),
         ("selftest", "A/A test: one run's two halves against each other"),
@@ -268,6 +290,9 @@ def build_parser() -> argparse.ArgumentParser:
             )
             c.set_defaults(kind="auto")
 
+
+def _add_merge(sub) -> None:
+    """``merge`` and ``lint``."""
     m = sub.add_parser(
         "merge",
         help="merge statistics files of one configuration (other seeds, other machines) into one",
@@ -281,6 +306,9 @@ def build_parser() -> argparse.ArgumentParser:
     lint.add_argument("blend", metavar="SCENE.blend")
     lint.add_argument("--blend-scene", metavar="NAME")
 
+
+def _add_suite(sub) -> None:
+    """``suite bless`` and ``suite run``."""
     s = sub.add_parser(
         "suite",
         help="a statistical render regression suite for CI: bless references once, run every case against them",
@@ -330,6 +358,9 @@ def build_parser() -> argparse.ArgumentParser:
                 "nightly run can pass a new N for new passes)",
             )
 
+
+def _add_matrix(sub) -> None:
+    """``matrix`` and ``bisect``: many releases."""
     for name, text in (
         ("matrix", "render one scene with several builds and compare each adjacent pair, and each against a baseline"),
         ("bisect", "find the first build of an ordered list where a difference appears"),
@@ -372,6 +403,9 @@ def build_parser() -> argparse.ArgumentParser:
             )
         m.add_argument("--out", required=True, metavar="DIR", help="folder for the renders, reports and index.html")
 
+
+def _add_bpy(sub) -> None:
+    """``bpy`` and ``demo``."""
     r = sub.add_parser(
         "bpy",
         help="a Python with another Cycles release's bpy module, for --python (made once, then cached)",
@@ -391,7 +425,6 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--out", default=os.path.join("out", "demo"), metavar="REPORT_DIR")
     d.add_argument("--passes", type=jobs.positive_int, default=None, help="passes per side")
     d.add_argument("--resolution", type=jobs.positive_int, default=None, help="square image size in pixels")
-    return parser
 
 
 def add_cluster_arguments(parser) -> None:
