@@ -21,9 +21,10 @@ import time
 from importlib import metadata
 from pathlib import Path
 
-from . import aa, cost, decision, detection, equivalence, plan, pvalues, readme, scales, stability
-from .cache import DEFAULT_DIR, REPO, welch_digest
-from .pools import RENDERED, say
+from .charts import aa, cost, decision, detection, equivalence, pvalues, scales, stability
+from .common import plan, readme
+from .common.cache import DEFAULT_DIR, REPO, welch_digest
+from .common.pools import RENDERED, say
 
 CHARTS = {"1": detection, "2": pvalues, "3": stability, "4": cost, "5": decision, "6": aa, "7": scales,
           "8": equivalence}  # fmt: skip

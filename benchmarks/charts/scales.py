@@ -20,18 +20,19 @@ import numpy as np
 import welch_core as wc
 from batch.present.summary import notes
 
-from . import detection, plan, trials
-from .cache import digest, memo_json, welch_digest
-from .plotting import COLORS, plt, save, write_csv
-from .pools import load_or_render, say
-from .trials import ALPHA, BASE_TILE, FIXED_WELCH, LABELS
-from .words import WELCH
-from .words import fine_share as _fine_share
-from .words import p as _p
-from .words import pct as _pct
-from .words import s as _s
-from .words import tile as _tile
-from .words import x as _x
+from ..common import plan, trials
+from ..common.cache import digest, memo_json, welch_digest
+from ..common.plotting import COLORS, plt, save, write_csv
+from ..common.pools import load_or_render, say
+from ..common.trials import ALPHA, BASE_TILE, FIXED_WELCH, LABELS
+from ..common.words import WELCH
+from ..common.words import fine_share as _fine_share
+from ..common.words import p as _p
+from ..common.words import pct as _pct
+from ..common.words import s as _s
+from ..common.words import tile as _tile
+from ..common.words import x as _x
+from . import detection
 
 SCALE_METHODS = (*FIXED_WELCH, "welch_multi")
 SCALES_VERSION = 1

@@ -1,8 +1,8 @@
 """Changes that alter a few light paths, rendered: power of the paired test alone, of Welch's test and of the
 default (paired, with Welch's test on the two sides where the differences are mostly exact zeros) against passes.
 
-    python -m benchmarks.sparse                  # pools in benchmarks/cache/, writes docs/benchmarks/sparse.{csv,png}
-    python -m benchmarks.sparse --quick --out /tmp/sparse    # small pools and few trials: checks the pipeline
+    python -m benchmarks.studies.sparse            # pools in benchmarks/cache/, writes docs/benchmarks/sparse.{csv,png}
+    python -m benchmarks.studies.sparse --quick --out /tmp/sparse    # small pools and few trials: the pipeline
 
 Each case is a built-in scene at 64x64, 1 spp a pass, 16-px tiles, and a setting whose change bites in few passes
 of a tile (an indirect clamp that clips only the rare bright caustic or subsurface path): a reference pool and a
@@ -26,9 +26,9 @@ import welch_core as wc
 from welch_core import comparison
 from welch_core.ttest import TTestResult, paired_from_stats
 
-from .cache import study_arguments
-from .plotting import write_csv
-from .pools import PoolSpec, load_or_render, say
+from ..common.cache import study_arguments
+from ..common.plotting import write_csv
+from ..common.pools import PoolSpec, load_or_render, say
 
 CASES = (
     ("corner_glass", "cycles.sample_clamp_indirect=20", "glass caustic, indirect clamp 20"),

@@ -30,12 +30,12 @@ from scipy import stats
 import welch_core as wc
 from welch_core.decision import identical_passes
 
-from .cache import digest, memo_json, welch_digest
-from .plotting import plt, save, write_csv
-from .pools import say
-from .trials import ALPHA, BASE_TILE
-from .words import n as _n
-from .words import pct as _pct
+from ..common.cache import digest, memo_json, welch_digest
+from ..common.plotting import plt, save, write_csv
+from ..common.pools import say
+from ..common.trials import ALPHA, BASE_TILE
+from ..common.words import n as _n
+from ..common.words import pct as _pct
 
 #: `check`'s defaults: tolerance 1 %.
 TOLERANCE = 0.01

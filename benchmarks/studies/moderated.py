@@ -1,8 +1,8 @@
 """Borrowing strength across tiles for the variance at small n: moderated variances (limma's empirical Bayes)
 against the t-tests `check` uses, on the rendered pools — power on the bias cases, false positives on the A/A pairs.
 
-    python -m benchmarks.moderated               # pools in benchmarks/cache/, writes docs/benchmarks/moderated.csv
-    python -m benchmarks.moderated --quick --out /tmp/moderated    # the quick pools of benchmarks.sparse
+    python -m benchmarks.studies.moderated           # pools in benchmarks/cache/, writes docs/benchmarks/moderated.csv
+    python -m benchmarks.studies.moderated --quick --out /tmp/moderated  # the quick pools of the sparse study
 
 At n passes a side a tile-channel's variance has n - 1 degrees of freedom, and at n = 2 to 4 the critical |t| of a
 Bonferroni level is in the hundreds to millions. limma (Smyth 2004) treats every tile-channel's variance as drawn
@@ -27,11 +27,13 @@ from pathlib import Path
 import numpy as np
 from scipy import optimize, special, stats
 
-from . import aa, plan, sparse
-from .cache import study_arguments
-from .plotting import write_csv
-from .pools import PoolSpec, load_or_render, say
-from .trials import ALPHA, BASE_TILE, draw_paired, draw_unpaired
+from ..charts import aa
+from ..common import plan
+from ..common.cache import study_arguments
+from ..common.plotting import write_csv
+from ..common.pools import PoolSpec, load_or_render, say
+from ..common.trials import ALPHA, BASE_TILE, draw_paired, draw_unpaired
+from . import sparse
 
 FULL = {"n": (2, 3, 4, 6, 8), "trials": 300, "plan": plan.FULL, "sparse": sparse.FULL}
 QUICK = {"n": (2, 4), "trials": 5, "plan": None, "sparse": sparse.QUICK}
@@ -132,7 +134,7 @@ def measure(budget: dict, cache: Path) -> list[dict]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = study_arguments("moderated", __doc__, "the quick pools of benchmarks.sparse, few trials", argv)
+    args = study_arguments("moderated", __doc__, "the quick pools of benchmarks.studies.sparse, few trials", argv)
     rows = measure(QUICK if args.quick else FULL, args.cache)
     write_csv(args.out / "moderated.csv", rows)
     say(f"wrote {args.out / 'moderated.csv'}")

@@ -1,7 +1,7 @@
 """`biased` on unbiased pairs whose sides differ in passes, rendered: before and after the permutation test.
 
-    python -m benchmarks.unequal                 # pools in benchmarks/cache/, writes docs/benchmarks/unequal.{csv,png}
-    python -m benchmarks.unequal --quick --out /tmp/unequal    # small pools and few splits: checks the pipeline
+    python -m benchmarks.studies.unequal         # pools in benchmarks/cache/, writes docs/benchmarks/unequal.{csv,png}
+    python -m benchmarks.studies.unequal --quick --out /tmp/unequal    # small pools and few splits: the pipeline
 
 A/A pools of one built-in scene at 64x64, 1 spp a pass (a glass caustic, the glossy room, the diffuse corner), split
 at random (1000 splits) into disjoint reference and test passes of the given counts; `compare` at alpha 0.01 with
@@ -29,9 +29,9 @@ from scipy import stats
 import welch_core as wc
 from welch_core import comparison, looks
 
-from .cache import study_arguments
-from .plotting import write_csv
-from .pools import PoolSpec, load_or_render, say
+from ..common.cache import study_arguments
+from ..common.plotting import write_csv
+from ..common.pools import PoolSpec, load_or_render, say
 
 ALPHA, TILE, RESOLUTION = 0.01, 16, 64
 SCENES = (("corner_glass", "glass caustic"), ("glossy", "glossy room"), ("corner", "diffuse corner"))

@@ -14,13 +14,13 @@ from pathlib import Path
 
 import numpy as np
 
-from . import checks, plan, trials
-from .plotting import plt, save, write_csv
-from .pools import load_or_render, say
-from .trials import ALPHA
-from .words import n as _n
-from .words import pct as _pct
-from .words import s as _s
+from ..common import checks, plan, trials
+from ..common.plotting import plt, save, write_csv
+from ..common.pools import load_or_render, say
+from ..common.trials import ALPHA
+from ..common.words import n as _n
+from ..common.words import pct as _pct
+from ..common.words import s as _s
 
 
 def pairs(b: plan.Budget) -> list[dict]:

@@ -22,16 +22,17 @@ import numpy as np
 
 import welch_core as wc
 
-from . import checks, detection, plan, scales
-from .plotting import plt, save, write_csv
-from .pools import load_or_render, say
-from .trials import ALPHA, FIXED_PAIRED, FIXED_WELCH, LABELS
-from .words import MODE_NAMES
-from .words import n as _n
-from .words import pct as _pct
-from .words import s as _s
-from .words import tg as _tg
-from .words import x as _x
+from ..common import checks, plan
+from ..common.plotting import plt, save, write_csv
+from ..common.pools import load_or_render, say
+from ..common.trials import ALPHA, FIXED_PAIRED, FIXED_WELCH, LABELS
+from ..common.words import MODE_NAMES
+from ..common.words import n as _n
+from ..common.words import pct as _pct
+from ..common.words import s as _s
+from ..common.words import tg as _tg
+from ..common.words import x as _x
+from . import detection, scales
 
 #: The goal of issue 11: `check` reaches `biased` in at most this many times the best fixed design's seconds.
 GOAL = 1.25

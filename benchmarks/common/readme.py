@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import aa, cost, decision, detection, equivalence, pvalues, scales, stability
+from ..charts import aa, cost, decision, detection, equivalence, pvalues, scales, stability
 from .words import WELCH
 from .words import best as _best
 from .words import fine_share as _fine_share

@@ -1,14 +1,14 @@
 """Passes a side to `biased`: `check` against the best fixed design chosen in hindsight and a matched-filter oracle.
 
-    python -m benchmarks.power                   # pools in benchmarks/cache/, writes docs/benchmarks/power.{csv,png}
-    python -m benchmarks.power --quick --out /tmp/power    # the quick pools of benchmarks.sparse: checks the pipeline
+    python -m benchmarks.studies.power              # pools in benchmarks/cache/, writes docs/benchmarks/power.{csv,png}
+    python -m benchmarks.studies.power --quick --out /tmp/power    # the quick pools of the sparse study: the pipeline
 
 Cases: chart 5's (chart 1's bias cases and the local metal sphere, 128² px, 400-pass pools) and the rendered
-sparse cases of `benchmarks.sparse` that `check` finds within its budget (a glass caustic and a fog volume under
+sparse cases of `benchmarks.studies.sparse` that `check` finds within its budget (a glass caustic and a fog volume under
 an indirect clamp, 64² px, 640-pass pools); each paired (the same seeds on both sides) and unpaired (disjoint
 seeds). Per case and test, in the same run:
 
-* `check` simulated as in chart 5 (`benchmarks.checks`: the passes of a run in a random order of the pool's
+* `check` simulated as in chart 5 (`benchmarks.common.checks`: the passes of a run in a random order of the pool's
   seeds, a look at each step of `look_schedule`, the pool as the budget), at its defaults, and the same with the
   early design switched off (``SequentialPlan(early_share=0)``, the design before it); median and 80th
   percentile of the passes a side to `biased` (a run that never gets there counts as never);
@@ -33,11 +33,13 @@ from scipy import stats
 
 import welch_core as wc
 
-from . import aa, checks, plan, sparse
-from .cache import study_arguments
-from .plotting import write_csv
-from .pools import PoolSpec, load_or_render, say
-from .trials import ALPHA, compare_verdicts, draw_paired, draw_unpaired
+from ..charts import aa
+from ..common import checks, plan
+from ..common.cache import study_arguments
+from ..common.plotting import write_csv
+from ..common.pools import PoolSpec, load_or_render, say
+from ..common.trials import ALPHA, compare_verdicts, draw_paired, draw_unpaired
+from . import sparse
 
 #: The goals of issue 20: median passes to `biased` within these multiples of the best fixed design and the oracle.
 GOAL_FIXED, GOAL_ORACLE = 1.25, 1.5
@@ -188,7 +190,7 @@ def aa_rows(budget: dict, cache: Path) -> list[dict]:
 
 
 def chart(rows: list[dict], path: Path) -> None:
-    from .plotting import plt, save
+    from ..common.plotting import plt, save
 
     fig, axes = plt.subplots(2, 1, figsize=(14, 8), sharex=True)
     names = [f"{r['case']}\n{r['test']}" for r in rows]
@@ -224,7 +226,7 @@ def chart(rows: list[dict], path: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = study_arguments("power", __doc__, "the quick pools of benchmarks.sparse, few runs", argv)
+    args = study_arguments("power", __doc__, "the quick pools of benchmarks.studies.sparse, few runs", argv)
     budget = QUICK if args.quick else FULL
     rows = []
     for case in cases(budget, args.cache):

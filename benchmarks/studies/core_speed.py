@@ -2,7 +2,7 @@
 
 Run from the repository root::
 
-    python -m benchmarks.core_speed
+    python -m benchmarks.studies.core_speed
 
 (a) One 4K pass (3840x2160 RGBA float32) into 32x32 tile sums: `tile_sums` against a plain `img.sum()` over the
     same array (the memory-bandwidth floor) and against the naive float64 reshape-sum; `TileStats.add_pass`, which

@@ -1,8 +1,8 @@
 """The futility stop of `equivalent`, on rendered unbiased pairs: passes and seconds it saves, the verdicts it gives
 away, and how often the tile size it recommends reaches `equivalent`.
 
-    python -m benchmarks.futility                 # pools in benchmarks/cache/, writes docs/benchmarks/futility.csv
-    python -m benchmarks.futility --quick --out /tmp/futility    # small pools and few runs: checks the pipeline
+    python -m benchmarks.studies.futility            # pools in benchmarks/cache/, writes docs/benchmarks/futility.csv
+    python -m benchmarks.studies.futility --quick --out /tmp/futility    # small pools and few runs: the pipeline
 
 A/A pools of built-in scenes at 64x64, 1 spp a pass; each run is `check` simulated on them (`welch_core.sequential_look`
 at every look, unpaired, disjoint halves of a random order of the pool's seeds, tolerance 1 %, 16-px tiles, budget
@@ -23,9 +23,9 @@ import numpy as np
 import welch_core as wc
 from welch_core import decision
 
-from .cache import study_arguments
-from .plotting import write_csv
-from .pools import PoolSpec, load_or_render, say
+from ..common.cache import study_arguments
+from ..common.plotting import write_csv
+from ..common.pools import PoolSpec, load_or_render, say
 
 TILE, RESOLUTION, TOLERANCE, ALPHA = 16, 64, 0.01, 0.01
 SCENES = (("corner", "diffuse corner", 1000), ("glossy", "glossy room", 1000),

@@ -11,17 +11,17 @@ from pathlib import Path
 
 import numpy as np
 
-from . import plan, trials
-from .cache import digest, memo_json, welch_digest
-from .plotting import COLORS, plt, save, write_csv
-from .pools import load_or_render, say
-from .trials import ALPHA, CALIBRATED_METHODS, FIXED_PAIRED, LABELS, METHODS, PAIRED, UNPAIRED
-from .words import WELCH
-from .words import best as _best
-from .words import cell as _cell
-from .words import pct as _pct
-from .words import s as _s
-from .words import tile as _tile
+from ..common import plan, trials
+from ..common.cache import digest, memo_json, welch_digest
+from ..common.plotting import COLORS, plt, save, write_csv
+from ..common.pools import load_or_render, say
+from ..common.trials import ALPHA, CALIBRATED_METHODS, FIXED_PAIRED, LABELS, METHODS, PAIRED, UNPAIRED
+from ..common.words import WELCH
+from ..common.words import best as _best
+from ..common.words import cell as _cell
+from ..common.words import pct as _pct
+from ..common.words import s as _s
+from ..common.words import tile as _tile
 
 #: Detection share the "seconds to detect" figures refer to.
 TARGET = 0.8

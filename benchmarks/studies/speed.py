@@ -3,8 +3,8 @@ machine may be shared and noisy: baselines and candidates are interleaved and th
 
 Run from the repository root::
 
-    python -m benchmarks.speed            # all four
-    python -m benchmarks.speed compare    # some: compare, passes, reseed, report, lobes
+    python -m benchmarks.studies.speed            # all four
+    python -m benchmarks.studies.speed compare    # some: compare, passes, reseed, report, lobes
 
 compare  ``python -m batch compare`` as a whole process (statistics files of 32 passes a side, 32x32 tiles, with
          their pixel sums) against ``python -c "import numpy, scipy.special"``, at 1024x576 and 3840x2160, and
@@ -33,16 +33,15 @@ import subprocess
 import sys
 import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 
 import welch_core as wc
 
+from ..common.cache import REPO
 from .core_speed import best_time
 
 PYTHON = sys.executable
-REPO = Path(__file__).resolve().parent.parent
 SIZES = {"1024x576": (576, 1024), "3840x2160": (2160, 3840)}
 TILE, PASSES = 32, 32
 
@@ -279,7 +278,7 @@ BENCHES = {
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m benchmarks.speed", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.studies.speed", description=__doc__.splitlines()[0])
     parser.add_argument("benches", nargs="*", metavar="BENCH", help=f"some of {', '.join(BENCHES)} (default: all)")
     args = parser.parse_args(argv)
     unknown = sorted(set(args.benches) - set(BENCHES))
