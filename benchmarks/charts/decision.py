@@ -22,7 +22,7 @@ import numpy as np
 
 import welch_core as wc
 
-from ..common import checks, plan
+from ..common import checks, fixed_designs, plan
 from ..common.plotting import plt, save, write_csv
 from ..common.pools import load_or_render, say
 from ..common.trials import ALPHA, FIXED_PAIRED, FIXED_WELCH, LABELS
@@ -32,7 +32,6 @@ from ..common.words import pct as _pct
 from ..common.words import s as _s
 from ..common.words import tg as _tg
 from ..common.words import x as _x
-from . import detection, scales
 
 #: The goal of issue 11: `check` reaches `biased` in at most this many times the best fixed design's seconds.
 GOAL = 1.25
@@ -78,7 +77,7 @@ def case_rows(b: plan.Budget, cache_dir: Path, case: plan.Case, summary: list[di
         with welch_df() if df == "welch" else contextlib.nullcontext():
             runs = checks.simulate(ref, test, paired, b.decision_runs, cache_dir, tolerance=tolerance, df=df)
         found = checks.tally(runs, per_pass)
-        best = detection.best_fixed(summary, case.name, FIXED_PAIRED if paired else FIXED_WELCH)
+        best = fixed_designs.best_fixed(summary, case.name, FIXED_PAIRED if paired else FIXED_WELCH)
         best_s = best["seconds_to_80"] if best else None
         row = {"case": case.name, "label": case.label, "mode": name, "paired": paired, "tolerance": tolerance,
                "df": df, "max_passes": checks.budget(ref, paired), "seconds_per_pass_both": per_pass, **found,
@@ -141,9 +140,9 @@ def boundary_rows(b: plan.Budget, looks: int = 8) -> list[dict]:
 
 
 def run(b: plan.Budget, cache_dir: Path, out_dir: Path) -> dict:
-    found = detection.compute(b, cache_dir)
+    found = fixed_designs.compute(b, cache_dir)
     summary = list(found["summary"])
-    local = scales.local_results(b, cache_dir)
+    local = fixed_designs.local_results(b, cache_dir)
     summary += local["summary"]
     cases = [*found["cases"], local["case"]]
     rows = []

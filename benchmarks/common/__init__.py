@@ -5,7 +5,9 @@
 - ``plan``: what is rendered and how many trials are drawn (the full run and the quick one): the bias cases, the
   unbiased pairs, the sparse cases.
 - ``trials``: trials drawn from pools, the detection methods they run, rates with their intervals.
+- ``fixed_designs``: every fixed design on the bias cases (chart 1's trials; charts 5 and 7 compare against them).
 - ``checks``: `check` simulated on pools, look by look.
+- ``measure``: the best of several wall times, and mpmath's exact Student-t p-value.
 - ``plotting``: matplotlib without a display, CSV files, the colours of the methods.
 - ``words``: how figures are written in the README; ``readme``: the README's writer.
 """

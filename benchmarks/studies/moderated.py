@@ -27,16 +27,14 @@ from pathlib import Path
 import numpy as np
 from scipy import optimize, special, stats
 
-from ..charts import aa
 from ..common import plan
 from ..common.cache import study_arguments
 from ..common.plotting import write_csv
-from ..common.pools import PoolSpec, load_or_render, say
+from ..common.pools import load_or_render, say
 from ..common.trials import ALPHA, BASE_TILE, draw_paired, draw_unpaired
-from . import sparse
 
-FULL = {"n": (2, 3, 4, 6, 8), "trials": 300, "plan": plan.FULL, "sparse": sparse.FULL}
-QUICK = {"n": (2, 4), "trials": 5, "plan": None, "sparse": sparse.QUICK}
+FULL = {"n": (2, 3, 4, 6, 8), "trials": 300, "plan": plan.FULL, "sparse_pool": plan.SPARSE_POOL}
+QUICK = {"n": (2, 4), "trials": 5, "plan": None, "sparse_pool": plan.SPARSE_QUICK_POOL}
 
 
 def _trigamma_inverse(value: float) -> float:
@@ -101,12 +99,11 @@ def pairs(budget: dict, cache: Path) -> list[dict]:
     if budget["plan"] is not None:
         for case in [*plan.cases(budget["plan"]), plan.local_case(budget["plan"])]:
             out.append({"name": case.name, "kind": "bias", "ref": case.ref, "test": case.test, "tests": (True, False)})
-        for pair in aa.pairs(budget["plan"]):
+        for pair in plan.aa_pairs(budget["plan"]):
             out.append({"name": pair["name"], "kind": "A/A", "ref": pair["ref"], "test": pair["test"],
                         "tests": (pair["paired"],)})  # fmt: skip
-    for scene, change, _label in sparse.CASES[:2]:
-        specs = [PoolSpec(scene, overrides, sparse.RESOLUTION, passes=budget["sparse"]["pool"])
-                 for overrides in ((), (change,))]  # fmt: skip
+    for scene, change, _label in plan.SPARSE_CASES[:2]:
+        specs = plan.sparse_pools(scene, change, budget["sparse_pool"])
         out.append({"name": scene, "kind": "bias", "ref": specs[0], "test": specs[1], "tests": (True, False)})
         out.append({"name": f"{scene} A/A", "kind": "A/A", "ref": specs[0], "test": specs[0], "tests": (False,)})
     return out

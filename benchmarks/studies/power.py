@@ -33,22 +33,20 @@ from scipy import stats
 
 import welch_core as wc
 
-from ..charts import aa
 from ..common import checks, plan
 from ..common.cache import study_arguments
 from ..common.plotting import write_csv
-from ..common.pools import PoolSpec, load_or_render, say
+from ..common.pools import load_or_render, say
 from ..common.trials import ALPHA, compare_verdicts, draw_paired, draw_unpaired
-from . import sparse
 
 #: The goals of issue 20: median passes to `biased` within these multiples of the best fixed design and the oracle.
 GOAL_FIXED, GOAL_ORACLE = 1.25, 1.5
 #: The designs simulated: (key in the CSV, early share): the defaults, and the design before the early one.
 DESIGNS = (("check", wc.looks.EARLY_SHARE), ("previous", 0.0))
-FULL = {"runs": 200, "trials": 200, "aa_runs": 200, "plan": plan.FULL, "sparse": sparse.FULL}
-QUICK = {"runs": 4, "trials": 6, "aa_runs": 3, "plan": None, "sparse": sparse.QUICK}
+FULL = {"runs": 200, "trials": 200, "aa_runs": 200, "plan": plan.FULL, "sparse_pool": plan.SPARSE_POOL}
+QUICK = {"runs": 4, "trials": 6, "aa_runs": 3, "plan": None, "sparse_pool": plan.SPARSE_QUICK_POOL}
 #: The sparse cases `check` finds within a 640-pass pool (the subsurface clamp is not found by any method there).
-SPARSE_CASES = sparse.CASES[:2]
+SPARSE_CASES = plan.SPARSE_CASES[:2]
 
 
 def pass_grid(most: int) -> list[int]:
@@ -68,9 +66,7 @@ def cases(budget: dict, cache: Path) -> list[dict]:
             out.append({"name": case.name, "label": case.label, "ref": load_or_render(case.ref, cache),
                         "test": load_or_render(case.test, cache)})  # fmt: skip
     for scene, change, label in SPARSE_CASES:
-        specs = [PoolSpec(scene, overrides, sparse.RESOLUTION, passes=budget["sparse"]["pool"])
-                 for overrides in ((), (change,))]  # fmt: skip
-        ref, test = (load_or_render(s, cache) for s in specs)
+        ref, test = (load_or_render(s, cache) for s in plan.sparse_pools(scene, change, budget["sparse_pool"]))
         out.append({"name": scene, "label": label, "ref": ref, "test": test})
     return out
 
@@ -171,7 +167,7 @@ def aa_rows(budget: dict, cache: Path) -> list[dict]:
     if budget["plan"] is None:
         return []
     rows = []
-    for pair in aa.pairs(budget["plan"]):
+    for pair in plan.aa_pairs(budget["plan"]):
         ref, test = load_or_render(pair["ref"], cache), load_or_render(pair["test"], cache)
         row = {"case": pair["name"], "label": pair["label"], "test": "paired" if pair["paired"] else "unpaired",
                "budget": checks.budget(ref, pair["paired"])}  # fmt: skip

@@ -26,19 +26,16 @@ import welch_core as wc
 from welch_core import comparison
 from welch_core.ttest import TTestResult, paired_from_stats
 
+from ..common import plan
 from ..common.cache import study_arguments
 from ..common.plotting import write_csv
-from ..common.pools import PoolSpec, load_or_render, say
+from ..common.pools import load_or_render, say
 
-CASES = (
-    ("corner_glass", "cycles.sample_clamp_indirect=20", "glass caustic, indirect clamp 20"),
-    ("volume", "cycles.sample_clamp_indirect=1", "fog, indirect clamp 1"),
-    ("sss", "cycles.sample_clamp_indirect=3", "subsurface, indirect clamp 3"),
-)
+CASES = plan.SPARSE_CASES
 METHODS = ("paired alone", "default (paired + Welch where sparse)", "Welch (disjoint seeds)")
-ALPHA, TILE, RESOLUTION = 0.01, 16, 64
-FULL = {"pool": 640, "passes": (8, 16, 32, 64, 128, 256), "trials": 40}
-QUICK = {"pool": 48, "passes": (8, 16), "trials": 3}
+ALPHA, TILE = 0.01, 16
+FULL = {"pool": plan.SPARSE_POOL, "passes": (8, 16, 32, 64, 128, 256), "trials": 40}
+QUICK = {"pool": plan.SPARSE_QUICK_POOL, "passes": (8, 16), "trials": 3}
 
 
 @contextlib.contextmanager
@@ -85,7 +82,7 @@ def trial(reference, changed, n: int, method: str, rng) -> str:
 def measure(budget: dict, cache: Path) -> list[dict]:
     rows = []
     for scene, change, label in CASES:
-        specs = [PoolSpec(scene, overrides, RESOLUTION, passes=budget["pool"]) for overrides in ((), (change,))]
+        specs = plan.sparse_pools(scene, change, budget["pool"])
         reference, changed = (load_or_render(s, cache, f"{scene} {'changed' if s.overrides else 'reference'}")
                               for s in specs)  # fmt: skip
         diffs = changed.sums(TILE) - reference.sums(TILE)

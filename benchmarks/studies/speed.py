@@ -39,7 +39,7 @@ import numpy as np
 import welch_core as wc
 
 from ..common.cache import REPO
-from .core_speed import best_time
+from ..common.measure import best_time
 
 PYTHON = sys.executable
 SIZES = {"1024x576": (576, 1024), "3840x2160": (2160, 3840)}
