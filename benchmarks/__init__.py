@@ -12,5 +12,8 @@ CI version, ``--help`` lists the charts and the studies). Render pools and trial
 - ``studies``: one-off measurements, each its own command, ``python -m benchmarks.studies.<name>``.
 
 No chart imports another chart, and no study imports a chart or another study: what two of them share is in
-``common``.
+``common``. All of them use batch and welch_core by public names only: welch_core's top-level names
+(``welch_core.__all__``) and the names without a leading underscore of batch's modules
+(``batch.<subpackage>.<module>``). The exception is ``common/whatif``, the what-ifs that switch a piece of
+welch_core off for a measurement: it replaces public functions in welch_core's modules, where they are looked up.
 """

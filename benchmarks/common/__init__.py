@@ -10,4 +10,5 @@
 - ``measure``: the best of several wall times, and mpmath's exact Student-t p-value.
 - ``plotting``: matplotlib without a display, CSV files, the colours of the methods.
 - ``words``: how figures are written in the README; ``readme``: the README's writer.
+- ``whatif``: the tool with one piece switched off (a what-if, or the tool before a change), for a measurement.
 """

@@ -41,8 +41,9 @@ from ..common.trials import ALPHA, compare_verdicts, draw_paired, draw_unpaired
 
 #: The goals of issue 20: median passes to `biased` within these multiples of the best fixed design and the oracle.
 GOAL_FIXED, GOAL_ORACLE = 1.25, 1.5
-#: The designs simulated: (key in the CSV, early share): the defaults, and the design before the early one.
-DESIGNS = (("check", wc.looks.EARLY_SHARE), ("previous", 0.0))
+#: The designs simulated: (key in the CSV, early share): the defaults (`SequentialPlan`'s default share), and the
+#: design before the early one.
+DESIGNS = (("check", wc.SequentialPlan.early_share), ("previous", 0.0))
 FULL = {"runs": 200, "trials": 200, "aa_runs": 200, "plan": plan.FULL, "sparse_pool": plan.SPARSE_POOL}
 QUICK = {"runs": 4, "trials": 6, "aa_runs": 3, "plan": None, "sparse_pool": plan.SPARSE_QUICK_POOL}
 #: The sparse cases `check` finds within a 640-pass pool (the subsurface clamp is not found by any method there).

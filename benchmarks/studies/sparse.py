@@ -16,17 +16,13 @@ identical.
 
 from __future__ import annotations
 
-import contextlib
-import dataclasses
 from pathlib import Path
 
 import numpy as np
 
 import welch_core as wc
-from welch_core import comparison
-from welch_core.ttest import TTestResult, paired_from_stats
 
-from ..common import plan
+from ..common import plan, whatif
 from ..common.cache import study_arguments
 from ..common.plotting import write_csv
 from ..common.pools import load_or_render, say
@@ -38,34 +34,6 @@ FULL = {"pool": plan.SPARSE_POOL, "passes": (8, 16, 32, 64, 128, 256), "trials":
 QUICK = {"pool": plan.SPARSE_QUICK_POOL, "passes": (8, 16), "trials": 3}
 
 
-@contextlib.contextmanager
-def paired_alone():
-    """`compare` without the Welch rule: a paired tile-channel whose differences are not normal stays untrusted."""
-    original = comparison.test_tiles
-
-    def without_welch(ref, test, kind, pvalue_method="exact"):
-        tested = original(ref, test, kind, pvalue_method)
-        if tested.unpaired is None or not tested.unpaired.any():
-            return tested
-        diffs = comparison.paired_differences(ref, test)
-        paired = paired_from_stats(diffs.mean, diffs.variance, diffs.n, pvalue_method=pvalue_method)
-        where = tested.unpaired
-        fields = (f.name for f in dataclasses.fields(TTestResult))
-        result = TTestResult(**{f: np.where(where, getattr(paired, f), getattr(tested.result, f)) for f in fields})
-        with np.errstate(invalid="ignore", divide="ignore"):
-            cross = (test.variance - ref.variance - diffs.variance) / (2.0 * diffs.n)
-        cross = np.where(where, cross, tested.cross)
-        return dataclasses.replace(
-            tested, result=result, suspect=tested.suspect | where, cross=cross, unpaired=np.zeros_like(where)
-        )
-
-    comparison.test_tiles = without_welch
-    try:
-        yield
-    finally:
-        comparison.test_tiles = original
-
-
 def trial(reference, changed, n: int, method: str, rng) -> str:
     if method.startswith("Welch"):
         picked = rng.choice(reference.n, 2 * n, replace=False)
@@ -74,7 +42,7 @@ def trial(reference, changed, n: int, method: str, rng) -> str:
     picked = rng.choice(reference.n, n, replace=False)
     ref, test = reference.stats(picked, TILE), changed.stats(picked, TILE)
     if method == "paired alone":
-        with paired_alone():
+        with whatif.paired_alone():
             return wc.compare(ref, test, ALPHA).verdict.label
     return wc.compare(ref, test, ALPHA).verdict.label
 
