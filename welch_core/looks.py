@@ -30,7 +30,7 @@ scaled by max_passes / EARLY_PASSES: the correlation of the looks is unchanged),
 budget; a hypothesis is rejected when it crosses either boundary, so by the union bound its level is kept. With a
 512-pass budget the look at 2 passes then has 16x the level (the critical |t| of one degree of freedom falls as
 much), the last looks half of it (about 0.1 higher in z at the levels used). Simulated on the pools of
-`benchmarks.power` (17 case-test pairs, 200 runs each): the median passes to `biased` fell in 10 (by up to 22 %:
+`benchmarks.studies.power` (17 case-test pairs, 200 runs each): the median passes to `biased` fell in 10 (by up to 22 %:
 clamp unpaired 9 -> 7 passes, walls unpaired 5 -> 4, glossy paired 18 -> 15), stayed in 5, and rose by one look
 in the 2 that take 29 and 170 passes (to 34 and 196).
 

@@ -179,21 +179,22 @@ STUDIES = """
 
 Each is its own command, run from the repository root on the same cached pools; its files sit beside this README.
 
-- `python -m benchmarks.power` (power.csv, power_aa.csv, power.png): passes a side to `biased` of `check` at its
+- `python -m benchmarks.studies.power` (power.csv, power_aa.csv, power.png): passes a side to `biased` of `check` at its
   defaults against the best fixed design in hindsight and a matched-filter oracle told the bias pattern, with and
   without the early design (half of each `biased` level spent by 16 passes a side), on chart 5's cases and a
   rendered glass caustic and fog volume; and the A/A pairs of chart 6 under both designs. Charts 5, 6 and 8 above
   were last run before the early design existed: power.csv holds chart 5's comparison for the current one.
   Findings: [docs/findings/power.md](../findings/power.md).
-- `python -m benchmarks.moderated` (moderated.csv): moderated variances (limma-trend empirical Bayes across tiles)
-  against `check`'s t-tests at 2–8 passes a side: power on the bias cases, `biased` on the A/A pairs.
-- `python -m benchmarks.sparse` (sparse.csv, sparse.png): changes that alter a few light paths, paired alone
+- `python -m benchmarks.studies.moderated` (moderated.csv): moderated variances (limma-trend empirical Bayes across
+  tiles) against `check`'s t-tests at 2–8 passes a side: power on the bias cases, `biased` on the A/A pairs.
+- `python -m benchmarks.studies.sparse` (sparse.csv, sparse.png): changes that alter a few light paths, paired alone
   against the default and Welch's test
   ([docs/findings/sparse_paired_differences.md](../findings/sparse_paired_differences.md)).
-- `python -m benchmarks.production`: a 1920×1080 `check`, its wall time split into rendering and everything else.
-- `python -m benchmarks.unequal` (unequal.csv, unequal.png): `biased` on rendered A/A splits whose sides differ in
-  passes (4 v 256 to 256 v 8, suites blessed at 256 and 512), before and after the permutation test, with
-  detection and paired A/A beside them. `python -m benchmarks.futility` (futility.csv): the futility stop of
+- `python -m benchmarks.studies.production`: a 1920×1080 `check`, its wall time split into rendering and everything
+  else.
+- `python -m benchmarks.studies.unequal` (unequal.csv, unequal.png): `biased` on rendered A/A splits whose sides differ
+  in passes (4 v 256 to 256 v 8, suites blessed at 256 and 512), before and after the permutation test, with
+  detection and paired A/A beside them. `python -m benchmarks.studies.futility` (futility.csv): the futility stop of
   `equivalent` on rendered A/A pairs. Findings: [docs/findings/unequal_passes.md](../findings/unequal_passes.md).
 """
 
