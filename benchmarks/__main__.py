@@ -8,7 +8,9 @@ Charts: 1 detection rate against render time, 2 p-value methods, 3 stability on 
 seconds to a decision (`check` against the best fixed design), 6 A/A runs of `check`, 7 multi-scale tiles against
 fixed tile sizes, 8 passes to `equivalent` at each scale against a known-variance oracle. ``--quick`` alone runs
 charts 1-4 (tests/benchmarks/test_pipeline.py counts their four PNGs);
-``--quick --charts 5 6 7 8`` checks the others (tests/benchmarks/test_decision.py).
+``--quick --charts 5 6 7 8`` checks the others (tests/benchmarks/test_decision.py). The charts are the modules of
+``benchmarks.charts``; the studies beside them are commands of their own (``python -m benchmarks.studies.<name>``,
+listed by ``--help``).
 """
 
 from __future__ import annotations
@@ -16,17 +18,22 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import pkgutil
 import platform
 import time
 from importlib import metadata
 from pathlib import Path
 
-from . import aa, cost, decision, detection, equivalence, plan, pvalues, readme, scales, stability
-from .cache import DEFAULT_DIR, REPO, welch_digest
-from .pools import RENDERED, say
+from . import studies
+from .charts import aa, cost, decision, detection, equivalence, pvalues, scales, stability
+from .common import plan, readme
+from .common.cache import DEFAULT_DIR, REPO, welch_digest
+from .common.pools import RENDERED, say
 
 CHARTS = {"1": detection, "2": pvalues, "3": stability, "4": cost, "5": decision, "6": aa, "7": scales,
           "8": equivalence}  # fmt: skip
+#: Each chart's part of the README, in the order of the charts.
+SECTIONS = {f"chart{number}": chart.section for number, chart in CHARTS.items()}
 #: What ``--quick`` runs without ``--charts``.
 QUICK_CHARTS = ("1", "2", "3", "4")
 
@@ -47,7 +54,15 @@ def machine() -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__.splitlines()[0])
+    names = ", ".join(m.name for m in pkgutil.iter_modules(studies.__path__))
+    parser = argparse.ArgumentParser(
+        prog="python -m benchmarks",
+        description=__doc__.splitlines()[0],
+        epilog="Charts (the modules of benchmarks/charts/): "
+        + ", ".join(f"{number} {chart.__name__.rpartition('.')[2]}" for number, chart in CHARTS.items())
+        + f". Studies beside the charts, each its own command: python -m benchmarks.studies.NAME [--help], NAME one "
+        f"of {names} (see benchmarks/studies/__init__.py).",
+    )
     parser.add_argument("--quick", action="store_true", help="tiny pools and few trials (CI)")
     parser.add_argument("--out", type=Path, default=REPO / "docs" / "benchmarks", help="output folder")
     parser.add_argument("--cache", type=Path, default=DEFAULT_DIR, help="pool and trial cache folder")
@@ -82,7 +97,7 @@ def main(argv: list[str] | None = None) -> int:
         figures["pools_rendered"] = len(set(RENDERED))
         figures["command"] = "python -m benchmarks" + (" --quick" if args.quick else "")
     figures_path.write_text(json.dumps(figures, indent=1, default=float))
-    readme.write(args.out, figures)
+    readme.write(args.out, figures, SECTIONS)
     say(f"done in {time.perf_counter() - start:.0f} s; figures in {args.out}")
     for line in readme.headlines(figures):
         say("  " + line)

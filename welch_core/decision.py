@@ -58,7 +58,7 @@ stop ends the search for `biased` too), the check stops ``inconclusive`` ("futil
 budget can bound. A non-binding futility stop only
 ever turns a later verdict into ``inconclusive``: neither ``biased`` nor ``equivalent`` becomes more likely, so
 both error rates stay at most alpha; what it costs is the chance of a verdict the rest of the budget might have
-reached (measured in `benchmarks.futility`).
+reached (measured in `benchmarks.studies.futility`).
 
 References: R. L. Berger, "Multiparameter hypothesis testing and acceptance sampling", Technometrics 24(4),
 1982; C. Jennison and B. W. Turnbull, "Group Sequential Methods with Applications to Clinical Trials", 2000.
@@ -106,8 +106,8 @@ FUTILITY_SHARE = 8  # ...and from an eighth of the budget (64 passes of the defa
 FUTILITY_MARGIN = 4.0
 #: ...and only while nothing points to a bias: the smallest p-value of the `biased` family, Bonferroni-adjusted
 #: over it, above this. A futility stop ends the search for `biased` too, and a bias that would cross its boundary
-#: later in the budget already shows as a small adjusted p at 16 passes (measured in `benchmarks.futility`); under
-#: no bias the adjusted p exceeds it in about 80 % of runs, which keep the saving.
+#: later in the budget already shows as a small adjusted p at 16 passes (measured in
+#: `benchmarks.studies.futility`); under no bias the adjusted p exceeds it in about 80 % of runs, which keep the saving.
 FUTILITY_PROMISE = 0.5
 
 #: Bounds on a relative difference beyond this say nothing a person can use (an early look's interval of a

@@ -6,7 +6,7 @@ alpha, ``alpha / (scales * tile-channels of its scale)``, and two group-sequenti
 share (`sequential.boundaries`, Lan-DeMets alpha spending, Pocock shape by default): an early design's over the
 first `EARLY_PASSES` passes and the main design's over the whole budget (`biased_levels`). At look k a hypothesis is
 rejected when its exact two-sided p-value (the paired t-test, or Welch's t with the conservative n - 1 degrees
-of freedom of the smaller side: see `_conservative`) is at most the boundary's nominal level; by the union bound
+of freedom of the smaller side: see `conservative`) is at most the boundary's nominal level; by the union bound
 over hypotheses and the spending over looks, the chance that an unbiased pair is ever called `biased` is at most
 alpha (measured: 4.5 % at alpha = 0.05 over 2000 sequences of skewed Welch samples with variances 1:9, against
 40 % when stopping at the first `compare` with p <= alpha). The same boundaries give repeated confidence
@@ -30,7 +30,7 @@ scaled by max_passes / EARLY_PASSES: the correlation of the looks is unchanged),
 budget; a hypothesis is rejected when it crosses either boundary, so by the union bound its level is kept. With a
 512-pass budget the look at 2 passes then has 16x the level (the critical |t| of one degree of freedom falls as
 much), the last looks half of it (about 0.1 higher in z at the levels used). Simulated on the pools of
-`benchmarks.power` (17 case-test pairs, 200 runs each): the median passes to `biased` fell in 10 (by up to 22 %:
+`benchmarks.studies.power` (17 case-test pairs, 200 runs each): the median passes to `biased` fell in 10 (by up to 22 %:
 clamp unpaired 9 -> 7 passes, walls unpaired 5 -> 4, glossy paired 18 -> 15), stayed in 5, and rose by one look
 in the 2 that take 29 and 170 passes (to 34 and 196).
 
@@ -70,6 +70,7 @@ __all__ = [
     "Look",
     "SequentialPlan",
     "biased_levels",
+    "conservative",
     "information_fraction",
     "look_schedule",
     "sequential_look",
@@ -196,7 +197,7 @@ class Look:
         return self.outcome.untestable
 
 
-def _conservative(tested: TileTest, n: int) -> TileTest:
+def conservative(tested: TileTest, n: int) -> TileTest:
     """Welch's test with n - 1 degrees of freedom (n the smaller side's passes) instead of Welch-Satterthwaite's
     real-valued nu: a boundary's level is far out in the tail, where nu overstates the evidence of small runs
     with unequal variances (at n = 10 a side, variances 1:9 and normal samples, the 3e-4 tail is 1.7x its
@@ -285,8 +286,8 @@ def sequential_look(
     whole = test_tiles(ref.whole(), test.whole(), kind)
     n = min(ref.n, test.n)
     if any(np.any(t.welch) for t in (*tests, whole)):  # Welch's test somewhere (a paired run's sparse tiles too)
-        tests = [_conservative(t, n) if np.any(t.welch) else t for t in tests]
-        whole = _conservative(whole, n) if np.any(whole.welch) else whole
+        tests = [conservative(t, n) if np.any(t.welch) else t for t in tests]
+        whole = conservative(whole, n) if np.any(whole.welch) else whole
         scales = tuple(dataclasses.replace(s, result=t.result) for s, t in zip(scales, tests, strict=True))
     shares = [bonferroni(plan.alpha, len(scales), scale.pvalues.size) for scale in scales]
     scale_levels = biased_levels(fractions, shares, plan)

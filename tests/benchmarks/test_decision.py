@@ -14,15 +14,15 @@ import numpy as np
 import pytest
 
 import welch_core as wc
-from benchmarks import checks
-from benchmarks.equivalence import Model
+from benchmarks.charts.equivalence import Model
+from benchmarks.common import checks
 
 REPO = Path(__file__).resolve().parents[2]
 SIZE, TILE = 64, 16
 
 
 class SyntheticPool:
-    """What `checks` needs of a `benchmarks.pools.Pool`: per-pass tile sums at tile 16 (normal, 4x4 tiles)."""
+    """What `checks` needs of a `benchmarks.common.pools.Pool`: per-pass tile sums at tile 16 (normal, 4x4 tiles)."""
 
     def __init__(self, passes: int, shift: float = 0.0, seed: int = 0, key: str = "synthetic"):
         rng = np.random.default_rng(seed)

@@ -45,8 +45,8 @@ def test_quick_benchmarks_write_every_output(tmp_path):
 @pytest.mark.slow
 def test_the_production_benchmark_splits_the_wall_time():
     """At a tiny size (the figure is for 1920x1080): it runs a check and the bare renders and prints the split."""
-    run = subprocess.run([sys.executable, "-m", "benchmarks.production", "--resolution", "64", "36", "--spp", "1",
-                          "--passes", "2"], cwd=REPO, capture_output=True, text=True, timeout=300)  # fmt: skip
+    run = subprocess.run([sys.executable, "-m", "benchmarks.studies.production", "--resolution", "64", "36", "--spp",
+                          "1", "--passes", "2"], cwd=REPO, capture_output=True, text=True, timeout=300)  # fmt: skip
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
     lines = run.stdout.splitlines()
     lines = lines[2:]  # after the progress lines
@@ -60,12 +60,13 @@ def test_the_production_benchmark_splits_the_wall_time():
 def test_the_sparse_power_and_moderated_studies_write_their_tables(tmp_path):
     """The quick forms (tiny pools, few trials; the power and moderated studies on the sparse study's pools): every
     case, size and method has a row, and the charts are written."""
-    run = subprocess.run([sys.executable, "-m", "benchmarks.sparse", "--quick", "--out", str(tmp_path), "--cache",
-                          str(tmp_path / "cache")], cwd=REPO, capture_output=True, text=True, timeout=600)  # fmt: skip
+    run = subprocess.run([sys.executable, "-m", "benchmarks.studies.sparse", "--quick", "--out", str(tmp_path),
+                          "--cache", str(tmp_path / "cache")], cwd=REPO, capture_output=True, text=True,
+                         timeout=600)  # fmt: skip
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
     import csv
 
-    from benchmarks import sparse
+    from benchmarks.studies import sparse
 
     rows = list(csv.DictReader(open(tmp_path / "sparse.csv")))
     assert len(rows) == len(sparse.CASES) * len(sparse.QUICK["passes"]) * len(sparse.METHODS)
@@ -73,7 +74,7 @@ def test_the_sparse_power_and_moderated_studies_write_their_tables(tmp_path):
     assert (tmp_path / "sparse.png").stat().st_size > 10_000
 
     for study in ("power", "moderated"):
-        run = subprocess.run([sys.executable, "-m", f"benchmarks.{study}", "--quick", "--out", str(tmp_path),
+        run = subprocess.run([sys.executable, "-m", f"benchmarks.studies.{study}", "--quick", "--out", str(tmp_path),
                               "--cache", str(tmp_path / "cache")], cwd=REPO, capture_output=True, text=True,
                              timeout=600)  # fmt: skip
         assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]

@@ -20,67 +20,21 @@ import numpy as np
 import welch_core as wc
 from batch.present.summary import notes
 
-from . import detection, plan, trials
-from .cache import digest, memo_json, welch_digest
-from .plotting import COLORS, plt, save, write_csv
-from .pools import load_or_render, say
-from .trials import ALPHA, BASE_TILE, FIXED_WELCH, LABELS
-from .words import WELCH
-from .words import fine_share as _fine_share
-from .words import p as _p
-from .words import pct as _pct
-from .words import s as _s
-from .words import tile as _tile
-from .words import x as _x
+from ..common import fixed_designs, plan, trials
+from ..common.cache import digest, memo_json, welch_digest
+from ..common.plotting import COLORS, plt, save, write_csv
+from ..common.pools import load_or_render, say
+from ..common.trials import ALPHA, BASE_TILE, FIXED_WELCH, LABELS
+from ..common.words import WELCH
+from ..common.words import fine_share as _fine_share
+from ..common.words import p as _p
+from ..common.words import pct as _pct
+from ..common.words import s as _s
+from ..common.words import tile as _tile
+from ..common.words import x as _x
 
 SCALE_METHODS = (*FIXED_WELCH, "welch_multi")
 SCALES_VERSION = 1
-
-
-def local_results(b: plan.Budget, cache_dir: Path) -> dict:
-    """Chart 1's trials (every `compare` method, no baselines) on the local bias, its detection rows, seconds to
-    80 % per method and the relative change per tile."""
-    case = plan.local_case(b)
-    specs = {case.ref.key: case.ref, case.test.key: case.test, case.converged.key: case.converged}
-    pools = {key: load_or_render(spec, cache_dir) for key, spec in specs.items()}
-    ref, test, conv = pools[case.ref.key], pools[case.test.key], pools[case.converged.key]
-    no_baselines = {"rmse": {}, "tilediff16": {}}
-    rows = []
-    for row in detection.case_results(b, case, pools, no_baselines, cache_dir):
-        lo, hi = trials.wilson(row["biased"], row["trials"])
-        rows.append({"case": case.name, **row, "rate": row["biased"] / row["trials"], "lo": lo, "hi": hi,
-                     "seconds": detection.seconds(row["method"], row["n"], ref, test, conv)})  # fmt: skip
-    change, se, var_ratio = detection.mean_change(ref, test)
-    summary = []
-    for m in trials.COMPARE_METHODS:
-        found = [r for r in rows if r["method"] == m]
-        if not found:
-            continue
-        s, n = detection.seconds_to_target(found)
-        summary.append(
-            {"case": case.name, "label": case.label, "mean_change": change, "mean_change_se": se,
-             "variance_ratio": var_ratio, "method": m, "seconds_to_80": s, "passes_to_80": n,
-             "converged_seconds": conv.total_seconds,
-             "seconds_per_pass_ref": ref.seconds_per_pass, "seconds_per_pass_test": test.seconds_per_pass}
-        )  # fmt: skip
-    return {"case": case, "rows": rows, "summary": summary, "tiles": tile_changes(ref, test)}
-
-
-def tile_changes(ref, test) -> dict:
-    """The relative change of the tile means (test / ref - 1) at each tile size: the largest in magnitude over
-    tile-channels, and how many 16² tiles change by more than 1 %."""
-    out = {}
-    size = ref.spec.resolution
-    tile = BASE_TILE
-    while tile <= size:
-        r, t = ref.sums(tile).mean(axis=0), test.sums(tile).mean(axis=0)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            rel = np.where(r > 0, t / r - 1, np.nan)
-        out[str(tile)] = {"largest": float(rel.flat[np.nanargmax(np.abs(rel))]),
-                          "tiles_over_1pct": int((np.nanmax(np.abs(rel), axis=-1) > 0.01).sum()),
-                          "tiles": int(rel.shape[0] * rel.shape[1])}  # fmt: skip
-        tile *= 2
-    return out
 
 
 def glass_results(b: plan.Budget, cache_dir: Path) -> dict:
@@ -144,14 +98,14 @@ def example(glass: dict) -> dict | None:
 
 
 def run(b: plan.Budget, cache_dir: Path, out_dir: Path) -> dict:
-    found = detection.compute(b, cache_dir)
-    local = local_results(b, cache_dir)
+    found = fixed_designs.compute(b, cache_dir)
+    local = fixed_designs.local_results(b, cache_dir)
     summary = [*found["summary"], *local["summary"]]
     cases = [*found["cases"], local["case"]]
     per_case = []
     for case in cases:
         rows = {r["method"]: r for r in summary if r["case"] == case.name}
-        best = detection.best_fixed(summary, case.name, FIXED_WELCH)
+        best = fixed_designs.best_fixed(summary, case.name, FIXED_WELCH)
         multi = rows.get("welch_multi", {}).get("seconds_to_80")
         per_case.append({"case": case.name, "label": case.label,
                          **{f"{m}_s": rows[m]["seconds_to_80"] if m in rows else None for m in SCALE_METHODS},

@@ -28,14 +28,13 @@ import numpy as np
 from scipy import stats
 
 import welch_core as wc
-from welch_core.decision import identical_passes
 
-from .cache import digest, memo_json, welch_digest
-from .plotting import plt, save, write_csv
-from .pools import say
-from .trials import ALPHA, BASE_TILE
-from .words import n as _n
-from .words import pct as _pct
+from ..common.cache import digest, memo_json, welch_digest
+from ..common.plotting import plt, save, write_csv
+from ..common.pools import say
+from ..common.trials import ALPHA, BASE_TILE
+from ..common.words import n as _n
+from ..common.words import pct as _pct
 
 #: `check`'s defaults: tolerance 1 %.
 TOLERANCE = 0.01
@@ -176,7 +175,7 @@ def _plot(path: Path, rows: list[dict]) -> str:
         y = [r[key] if r[key] is not None else np.nan for r in rows]
         left.plot(x, y, style, label=label, color="#1f77b4" if key.startswith("check") else "#7f7f7f")
     left.axhline(budget, color="#d62728", lw=0.8, ls=":", label=f"budget ({budget} passes a side)")
-    floor = identical_passes(ALPHA)
+    floor = wc.identical_passes(ALPHA)
     left.axhline(floor, color="black", lw=0.8, ls=":", label=f"no `equivalent` before {floor} passes (rare changes)")
     left.set_yscale("log")
     left.set_xticks(x, labels)
@@ -254,7 +253,7 @@ def section(f: dict) -> list[str]:
         "are not trusted to decide."
     )  # fmt: skip
     lines.append(
-        f"- **Coarse scales** stop at the floor: `check` claims nothing before {identical_passes(ALPHA)} passes "
+        f"- **Coarse scales** stop at the floor: `check` claims nothing before {wc.identical_passes(ALPHA)} passes "
         "a side, however tight the intervals (`welch_core.identical_passes`: enough passes that a change altering "
         "one pass in ten would have shown at 1 − α). The oracle has no such rule, so the ratio there is the floor's, "
         "not the test's."

@@ -2,7 +2,7 @@
 
 Run from the repository root::
 
-    python -m benchmarks.core_speed
+    python -m benchmarks.studies.core_speed
 
 (a) One 4K pass (3840x2160 RGBA float32) into 32x32 tile sums: `tile_sums` against a plain `img.sum()` over the
     same array (the memory-bandwidth floor) and against the naive float64 reshape-sum; `TileStats.add_pass`, which
@@ -17,7 +17,7 @@ Every time is the minimum over several repeats. Nothing is asserted.
 
 from __future__ import annotations
 
-import time
+import argparse
 
 import mpmath
 import numpy as np
@@ -34,17 +34,9 @@ from welch_core import (
     welch_from_stats,
 )
 
+from ..common.measure import best_time, mp_student
+
 WIDTH, HEIGHT, TILE = 3840, 2160, 32
-
-
-def best_time(func, repeats: int = 7) -> float:
-    """Minimum wall time of `repeats` calls, in seconds."""
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        func()
-        times.append(time.perf_counter() - start)
-    return min(times)
 
 
 def table(title: str, header: tuple[str, ...], rows: list[tuple]) -> None:
@@ -117,11 +109,6 @@ def bench_compare() -> None:
 
 
 # -- (c) p-values ---------------------------------------------------------------------------------------------
-
-
-def mp_student(t: float, df: float) -> mpmath.mpf:
-    t, df = mpmath.mpf(t), mpmath.mpf(df)
-    return mpmath.betainc(df / 2, mpmath.mpf(1) / 2, 0, df / (df + t * t), regularized=True)
 
 
 def mp_gauss(t: float) -> mpmath.mpf:
@@ -205,7 +192,10 @@ def bench_pvalues() -> None:
     print(f"  A&S eq. 6: largest absolute error against erfc over |t| in [0, 40]: {as_abs:.2e} (bound 2.5e-5)")
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
+    argparse.ArgumentParser(
+        prog="python -m benchmarks.studies.core_speed", description=__doc__.splitlines()[0]
+    ).parse_args(argv)
     bench_accumulation()
     bench_compare()
     bench_pvalues()

@@ -1,14 +1,14 @@
 """Passes a side to `biased`: `check` against the best fixed design chosen in hindsight and a matched-filter oracle.
 
-    python -m benchmarks.power                   # pools in benchmarks/cache/, writes docs/benchmarks/power.{csv,png}
-    python -m benchmarks.power --quick --out /tmp/power    # the quick pools of benchmarks.sparse: checks the pipeline
+    python -m benchmarks.studies.power              # pools in benchmarks/cache/, writes docs/benchmarks/power.{csv,png}
+    python -m benchmarks.studies.power --quick --out /tmp/power    # the quick pools of the sparse study: the pipeline
 
 Cases: chart 5's (chart 1's bias cases and the local metal sphere, 128² px, 400-pass pools) and the rendered
-sparse cases of `benchmarks.sparse` that `check` finds within its budget (a glass caustic and a fog volume under
+sparse cases of `benchmarks.studies.sparse` that `check` finds within its budget (a glass caustic and a fog volume under
 an indirect clamp, 64² px, 640-pass pools); each paired (the same seeds on both sides) and unpaired (disjoint
 seeds). Per case and test, in the same run:
 
-* `check` simulated as in chart 5 (`benchmarks.checks`: the passes of a run in a random order of the pool's
+* `check` simulated as in chart 5 (`benchmarks.common.checks`: the passes of a run in a random order of the pool's
   seeds, a look at each step of `look_schedule`, the pool as the budget), at its defaults, and the same with the
   early design switched off (``SequentialPlan(early_share=0)``, the design before it); median and 80th
   percentile of the passes a side to `biased` (a run that never gets there counts as never);
@@ -33,20 +33,21 @@ from scipy import stats
 
 import welch_core as wc
 
-from . import aa, checks, plan, sparse
-from .cache import study_arguments
-from .plotting import write_csv
-from .pools import PoolSpec, load_or_render, say
-from .trials import ALPHA, compare_verdicts, draw_paired, draw_unpaired
+from ..common import checks, plan
+from ..common.cache import study_arguments
+from ..common.plotting import write_csv
+from ..common.pools import load_or_render, say
+from ..common.trials import ALPHA, compare_verdicts, draw_paired, draw_unpaired
 
 #: The goals of issue 20: median passes to `biased` within these multiples of the best fixed design and the oracle.
 GOAL_FIXED, GOAL_ORACLE = 1.25, 1.5
-#: The designs simulated: (key in the CSV, early share): the defaults, and the design before the early one.
-DESIGNS = (("check", wc.looks.EARLY_SHARE), ("previous", 0.0))
-FULL = {"runs": 200, "trials": 200, "aa_runs": 200, "plan": plan.FULL, "sparse": sparse.FULL}
-QUICK = {"runs": 4, "trials": 6, "aa_runs": 3, "plan": None, "sparse": sparse.QUICK}
+#: The designs simulated: (key in the CSV, early share): the defaults (`SequentialPlan`'s default share), and the
+#: design before the early one.
+DESIGNS = (("check", wc.SequentialPlan.early_share), ("previous", 0.0))
+FULL = {"runs": 200, "trials": 200, "aa_runs": 200, "plan": plan.FULL, "sparse_pool": plan.SPARSE_POOL}
+QUICK = {"runs": 4, "trials": 6, "aa_runs": 3, "plan": None, "sparse_pool": plan.SPARSE_QUICK_POOL}
 #: The sparse cases `check` finds within a 640-pass pool (the subsurface clamp is not found by any method there).
-SPARSE_CASES = sparse.CASES[:2]
+SPARSE_CASES = plan.SPARSE_CASES[:2]
 
 
 def pass_grid(most: int) -> list[int]:
@@ -66,9 +67,7 @@ def cases(budget: dict, cache: Path) -> list[dict]:
             out.append({"name": case.name, "label": case.label, "ref": load_or_render(case.ref, cache),
                         "test": load_or_render(case.test, cache)})  # fmt: skip
     for scene, change, label in SPARSE_CASES:
-        specs = [PoolSpec(scene, overrides, sparse.RESOLUTION, passes=budget["sparse"]["pool"])
-                 for overrides in ((), (change,))]  # fmt: skip
-        ref, test = (load_or_render(s, cache) for s in specs)
+        ref, test = (load_or_render(s, cache) for s in plan.sparse_pools(scene, change, budget["sparse_pool"]))
         out.append({"name": scene, "label": label, "ref": ref, "test": test})
     return out
 
@@ -169,7 +168,7 @@ def aa_rows(budget: dict, cache: Path) -> list[dict]:
     if budget["plan"] is None:
         return []
     rows = []
-    for pair in aa.pairs(budget["plan"]):
+    for pair in plan.aa_pairs(budget["plan"]):
         ref, test = load_or_render(pair["ref"], cache), load_or_render(pair["test"], cache)
         row = {"case": pair["name"], "label": pair["label"], "test": "paired" if pair["paired"] else "unpaired",
                "budget": checks.budget(ref, pair["paired"])}  # fmt: skip
@@ -188,7 +187,7 @@ def aa_rows(budget: dict, cache: Path) -> list[dict]:
 
 
 def chart(rows: list[dict], path: Path) -> None:
-    from .plotting import plt, save
+    from ..common.plotting import plt, save
 
     fig, axes = plt.subplots(2, 1, figsize=(14, 8), sharex=True)
     names = [f"{r['case']}\n{r['test']}" for r in rows]
@@ -224,7 +223,7 @@ def chart(rows: list[dict], path: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = study_arguments("power", __doc__, "the quick pools of benchmarks.sparse, few runs", argv)
+    args = study_arguments("power", __doc__, "the quick pools of benchmarks.studies.sparse, few runs", argv)
     budget = QUICK if args.quick else FULL
     rows = []
     for case in cases(budget, args.cache):

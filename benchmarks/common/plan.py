@@ -182,3 +182,44 @@ def paired_null(b: Budget) -> tuple[PoolSpec, PoolSpec]:
 
 def glass(b: Budget) -> PoolSpec:
     return b.pool("corner_glass")
+
+
+def aa_pairs(b: Budget) -> list[dict]:
+    """Chart 6's unbiased pairs (the power and moderated studies use them too): name, label, reference and test
+    pool, paired or not, runs."""
+    corner = b.pool("corner")
+    bright = next(c.ref for c in cases(b) if c.group == "bright corner")
+    _sobol, blue = paired_null(b)
+    return [
+        {"name": "corner", "label": "corner (paper's scene)", "ref": corner, "test": corner, "paired": False,
+         "runs": b.aa_runs},
+        {"name": "bright", "label": "bright corner", "ref": bright, "test": bright, "paired": False,
+         "runs": b.aa_other_runs},
+        {"name": "glossy", "label": "glossy scene", "ref": b.pool("glossy"), "test": b.pool("glossy"),
+         "paired": False, "runs": b.aa_other_runs},
+        {"name": "glass", "label": "corner + glass sphere (caustics)", "ref": glass(b), "test": glass(b),
+         "paired": False, "runs": b.aa_other_runs},
+        {"name": "sobol_blue", "label": "corner, Sobol vs blue noise, paired", "ref": corner, "test": blue,
+         "paired": True, "runs": b.aa_other_runs},
+    ]  # fmt: skip
+
+
+# -- the sparse cases ---------------------------------------------------------------------------------------
+
+#: Changes that alter a few light paths (an indirect clamp that clips only the rare bright caustic or subsurface
+#: path), rendered by `benchmarks.studies.sparse`; the power and moderated studies draw from the same pools.
+#: (scene, override, label), each a built-in scene at SPARSE_RESOLUTION px, 1 spp a pass.
+SPARSE_CASES = (
+    ("corner_glass", "cycles.sample_clamp_indirect=20", "glass caustic, indirect clamp 20"),
+    ("volume", "cycles.sample_clamp_indirect=1", "fog, indirect clamp 1"),
+    ("sss", "cycles.sample_clamp_indirect=3", "subsurface, indirect clamp 3"),
+)
+SPARSE_RESOLUTION = 64
+#: Passes of each sparse pool: in the full run, in the quick one.
+SPARSE_POOL, SPARSE_QUICK_POOL = 640, 48
+
+
+def sparse_pools(scene: str, change: str, passes: int) -> tuple[PoolSpec, PoolSpec]:
+    """A sparse case's reference and changed pool, `passes` passes each, with the same seeds."""
+    return PoolSpec(scene, (), SPARSE_RESOLUTION, passes=passes), PoolSpec(scene, (change,), SPARSE_RESOLUTION,
+                                                                              passes=passes)  # fmt: skip

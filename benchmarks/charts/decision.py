@@ -22,16 +22,16 @@ import numpy as np
 
 import welch_core as wc
 
-from . import checks, detection, plan, scales
-from .plotting import plt, save, write_csv
-from .pools import load_or_render, say
-from .trials import ALPHA, FIXED_PAIRED, FIXED_WELCH, LABELS
-from .words import MODE_NAMES
-from .words import n as _n
-from .words import pct as _pct
-from .words import s as _s
-from .words import tg as _tg
-from .words import x as _x
+from ..common import checks, fixed_designs, plan, whatif
+from ..common.plotting import plt, save, write_csv
+from ..common.pools import load_or_render, say
+from ..common.trials import ALPHA, FIXED_PAIRED, FIXED_WELCH, LABELS
+from ..common.words import MODE_NAMES
+from ..common.words import n as _n
+from ..common.words import pct as _pct
+from ..common.words import s as _s
+from ..common.words import tg as _tg
+from ..common.words import x as _x
 
 #: The goal of issue 11: `check` reaches `biased` in at most this many times the best fixed design's seconds.
 GOAL = 1.25
@@ -53,31 +53,19 @@ MODE_LABELS = {
 }
 
 
-@contextlib.contextmanager
-def welch_df():
-    """Within: the sequential looks use Welch-Satterthwaite's degrees of freedom, not n - 1 (a what-if)."""
-    looks = wc.looks
-    saved = looks._conservative
-    looks._conservative = lambda tested, n: tested
-    try:
-        yield
-    finally:
-        looks._conservative = saved
-
-
 def case_rows(b: plan.Budget, cache_dir: Path, case: plan.Case, summary: list[dict]) -> list[dict]:
     """One row per design simulated on `case`, with the best fixed design of the same test beside it."""
     ref, test = load_or_render(case.ref, cache_dir), load_or_render(case.test, cache_dir)
     per_pass = ref.seconds_per_pass + test.seconds_per_pass
     rows = []
     for name, paired, tolerance, df in MODES:
-        if df == "welch" and not hasattr(wc.looks, "_conservative"):
+        if df == "welch" and not whatif.welch_df_available():
             continue  # welch_core changed: the what-if no longer applies
         say(f"chart 5: {case.name}, {MODE_LABELS[name]}")
-        with welch_df() if df == "welch" else contextlib.nullcontext():
+        with whatif.welch_df() if df == "welch" else contextlib.nullcontext():
             runs = checks.simulate(ref, test, paired, b.decision_runs, cache_dir, tolerance=tolerance, df=df)
         found = checks.tally(runs, per_pass)
-        best = detection.best_fixed(summary, case.name, FIXED_PAIRED if paired else FIXED_WELCH)
+        best = fixed_designs.best_fixed(summary, case.name, FIXED_PAIRED if paired else FIXED_WELCH)
         best_s = best["seconds_to_80"] if best else None
         row = {"case": case.name, "label": case.label, "mode": name, "paired": paired, "tolerance": tolerance,
                "df": df, "max_passes": checks.budget(ref, paired), "seconds_per_pass_both": per_pass, **found,
@@ -124,7 +112,7 @@ def boundary_rows(b: plan.Budget, looks: int = 8) -> list[dict]:
         schedule = wc.look_schedule(max_passes)
         fractions = [min(n / max_passes, 1.0) for n in schedule]
         shares = [ALPHA / (len(sizes) * channels[t]) for t in (finest, coarsest)]
-        levels = wc.sequential.nominal_levels(wc.sequential.boundaries(fractions, shares, "pocock"))
+        levels = wc.nominal_levels(wc.boundaries(fractions, shares, "pocock"))
         for k, n in enumerate(schedule[:looks]):
             row = {"test": "paired" if paired else "unpaired", "max_passes": max_passes, "look": k + 1, "passes": n,
                    "fraction": fractions[k], "finest": finest, "coarsest": coarsest}  # fmt: skip
@@ -140,9 +128,9 @@ def boundary_rows(b: plan.Budget, looks: int = 8) -> list[dict]:
 
 
 def run(b: plan.Budget, cache_dir: Path, out_dir: Path) -> dict:
-    found = detection.compute(b, cache_dir)
+    found = fixed_designs.compute(b, cache_dir)
     summary = list(found["summary"])
-    local = scales.local_results(b, cache_dir)
+    local = fixed_designs.local_results(b, cache_dir)
     summary += local["summary"]
     cases = [*found["cases"], local["case"]]
     rows = []

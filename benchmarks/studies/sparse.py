@@ -1,8 +1,8 @@
 """Changes that alter a few light paths, rendered: power of the paired test alone, of Welch's test and of the
 default (paired, with Welch's test on the two sides where the differences are mostly exact zeros) against passes.
 
-    python -m benchmarks.sparse                  # pools in benchmarks/cache/, writes docs/benchmarks/sparse.{csv,png}
-    python -m benchmarks.sparse --quick --out /tmp/sparse    # small pools and few trials: checks the pipeline
+    python -m benchmarks.studies.sparse            # pools in benchmarks/cache/, writes docs/benchmarks/sparse.{csv,png}
+    python -m benchmarks.studies.sparse --quick --out /tmp/sparse    # small pools and few trials: the pipeline
 
 Each case is a built-in scene at 64x64, 1 spp a pass, 16-px tiles, and a setting whose change bites in few passes
 of a tile (an indirect clamp that clips only the rare bright caustic or subsurface path): a reference pool and a
@@ -16,57 +16,22 @@ identical.
 
 from __future__ import annotations
 
-import contextlib
-import dataclasses
 from pathlib import Path
 
 import numpy as np
 
 import welch_core as wc
-from welch_core import comparison
-from welch_core.ttest import TTestResult, paired_from_stats
 
-from .cache import study_arguments
-from .plotting import write_csv
-from .pools import PoolSpec, load_or_render, say
+from ..common import plan, whatif
+from ..common.cache import study_arguments
+from ..common.plotting import write_csv
+from ..common.pools import load_or_render, say
 
-CASES = (
-    ("corner_glass", "cycles.sample_clamp_indirect=20", "glass caustic, indirect clamp 20"),
-    ("volume", "cycles.sample_clamp_indirect=1", "fog, indirect clamp 1"),
-    ("sss", "cycles.sample_clamp_indirect=3", "subsurface, indirect clamp 3"),
-)
+CASES = plan.SPARSE_CASES
 METHODS = ("paired alone", "default (paired + Welch where sparse)", "Welch (disjoint seeds)")
-ALPHA, TILE, RESOLUTION = 0.01, 16, 64
-FULL = {"pool": 640, "passes": (8, 16, 32, 64, 128, 256), "trials": 40}
-QUICK = {"pool": 48, "passes": (8, 16), "trials": 3}
-
-
-@contextlib.contextmanager
-def paired_alone():
-    """`compare` without the Welch rule: a paired tile-channel whose differences are not normal stays untrusted."""
-    original = comparison.test_tiles
-
-    def without_welch(ref, test, kind, pvalue_method="exact"):
-        tested = original(ref, test, kind, pvalue_method)
-        if tested.unpaired is None or not tested.unpaired.any():
-            return tested
-        diffs = comparison.paired_differences(ref, test)
-        paired = paired_from_stats(diffs.mean, diffs.variance, diffs.n, pvalue_method=pvalue_method)
-        where = tested.unpaired
-        fields = (f.name for f in dataclasses.fields(TTestResult))
-        result = TTestResult(**{f: np.where(where, getattr(paired, f), getattr(tested.result, f)) for f in fields})
-        with np.errstate(invalid="ignore", divide="ignore"):
-            cross = (test.variance - ref.variance - diffs.variance) / (2.0 * diffs.n)
-        cross = np.where(where, cross, tested.cross)
-        return dataclasses.replace(
-            tested, result=result, suspect=tested.suspect | where, cross=cross, unpaired=np.zeros_like(where)
-        )
-
-    comparison.test_tiles = without_welch
-    try:
-        yield
-    finally:
-        comparison.test_tiles = original
+ALPHA, TILE = 0.01, 16
+FULL = {"pool": plan.SPARSE_POOL, "passes": (8, 16, 32, 64, 128, 256), "trials": 40}
+QUICK = {"pool": plan.SPARSE_QUICK_POOL, "passes": (8, 16), "trials": 3}
 
 
 def trial(reference, changed, n: int, method: str, rng) -> str:
@@ -77,7 +42,7 @@ def trial(reference, changed, n: int, method: str, rng) -> str:
     picked = rng.choice(reference.n, n, replace=False)
     ref, test = reference.stats(picked, TILE), changed.stats(picked, TILE)
     if method == "paired alone":
-        with paired_alone():
+        with whatif.paired_alone():
             return wc.compare(ref, test, ALPHA).verdict.label
     return wc.compare(ref, test, ALPHA).verdict.label
 
@@ -85,7 +50,7 @@ def trial(reference, changed, n: int, method: str, rng) -> str:
 def measure(budget: dict, cache: Path) -> list[dict]:
     rows = []
     for scene, change, label in CASES:
-        specs = [PoolSpec(scene, overrides, RESOLUTION, passes=budget["pool"]) for overrides in ((), (change,))]
+        specs = plan.sparse_pools(scene, change, budget["pool"])
         reference, changed = (load_or_render(s, cache, f"{scene} {'changed' if s.overrides else 'reference'}")
                               for s in specs)  # fmt: skip
         diffs = changed.sums(TILE) - reference.sums(TILE)

@@ -14,11 +14,11 @@ import numpy as np
 
 import welch_core as wc
 
-from . import plan
-from .cache import digest, memo_json, source_digest
-from .core_speed import best_time
-from .plotting import plt, save, write_csv
-from .pools import load_or_render, quiet_stdout, say
+from ..common import plan
+from ..common.cache import digest, memo_json, source_digest
+from ..common.measure import best_time
+from ..common.plotting import plt, save, write_csv
+from ..common.pools import load_or_render, quiet_stdout, say
 
 #: Part of the cached measurements' key: bump it when a change here changes what is measured.
 COST_VERSION = 2

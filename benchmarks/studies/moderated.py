@@ -1,8 +1,8 @@
 """Borrowing strength across tiles for the variance at small n: moderated variances (limma's empirical Bayes)
 against the t-tests `check` uses, on the rendered pools — power on the bias cases, false positives on the A/A pairs.
 
-    python -m benchmarks.moderated               # pools in benchmarks/cache/, writes docs/benchmarks/moderated.csv
-    python -m benchmarks.moderated --quick --out /tmp/moderated    # the quick pools of benchmarks.sparse
+    python -m benchmarks.studies.moderated           # pools in benchmarks/cache/, writes docs/benchmarks/moderated.csv
+    python -m benchmarks.studies.moderated --quick --out /tmp/moderated  # the quick pools of the sparse study
 
 At n passes a side a tile-channel's variance has n - 1 degrees of freedom, and at n = 2 to 4 the critical |t| of a
 Bonferroni level is in the hundreds to millions. limma (Smyth 2004) treats every tile-channel's variance as drawn
@@ -27,14 +27,14 @@ from pathlib import Path
 import numpy as np
 from scipy import optimize, special, stats
 
-from . import aa, plan, sparse
-from .cache import study_arguments
-from .plotting import write_csv
-from .pools import PoolSpec, load_or_render, say
-from .trials import ALPHA, BASE_TILE, draw_paired, draw_unpaired
+from ..common import plan
+from ..common.cache import study_arguments
+from ..common.plotting import write_csv
+from ..common.pools import load_or_render, say
+from ..common.trials import ALPHA, BASE_TILE, draw_paired, draw_unpaired
 
-FULL = {"n": (2, 3, 4, 6, 8), "trials": 300, "plan": plan.FULL, "sparse": sparse.FULL}
-QUICK = {"n": (2, 4), "trials": 5, "plan": None, "sparse": sparse.QUICK}
+FULL = {"n": (2, 3, 4, 6, 8), "trials": 300, "plan": plan.FULL, "sparse_pool": plan.SPARSE_POOL}
+QUICK = {"n": (2, 4), "trials": 5, "plan": None, "sparse_pool": plan.SPARSE_QUICK_POOL}
 
 
 def _trigamma_inverse(value: float) -> float:
@@ -99,12 +99,11 @@ def pairs(budget: dict, cache: Path) -> list[dict]:
     if budget["plan"] is not None:
         for case in [*plan.cases(budget["plan"]), plan.local_case(budget["plan"])]:
             out.append({"name": case.name, "kind": "bias", "ref": case.ref, "test": case.test, "tests": (True, False)})
-        for pair in aa.pairs(budget["plan"]):
+        for pair in plan.aa_pairs(budget["plan"]):
             out.append({"name": pair["name"], "kind": "A/A", "ref": pair["ref"], "test": pair["test"],
                         "tests": (pair["paired"],)})  # fmt: skip
-    for scene, change, _label in sparse.CASES[:2]:
-        specs = [PoolSpec(scene, overrides, sparse.RESOLUTION, passes=budget["sparse"]["pool"])
-                 for overrides in ((), (change,))]  # fmt: skip
+    for scene, change, _label in plan.SPARSE_CASES[:2]:
+        specs = plan.sparse_pools(scene, change, budget["sparse_pool"])
         out.append({"name": scene, "kind": "bias", "ref": specs[0], "test": specs[1], "tests": (True, False)})
         out.append({"name": f"{scene} A/A", "kind": "A/A", "ref": specs[0], "test": specs[0], "tests": (False,)})
     return out
@@ -132,7 +131,7 @@ def measure(budget: dict, cache: Path) -> list[dict]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = study_arguments("moderated", __doc__, "the quick pools of benchmarks.sparse, few trials", argv)
+    args = study_arguments("moderated", __doc__, "the quick pools of benchmarks.studies.sparse, few trials", argv)
     rows = measure(QUICK if args.quick else FULL, args.cache)
     write_csv(args.out / "moderated.csv", rows)
     say(f"wrote {args.out / 'moderated.csv'}")

@@ -18,11 +18,11 @@ from scipy import special
 
 import welch_core as wc
 
-from .cache import digest, memo_json
-from .core_speed import best_time, mp_student
-from .plotting import plt, save, write_csv
-from .pools import say
-from .words import gauss_fp as _gauss_fp
+from ..common.cache import digest, memo_json
+from ..common.measure import best_time, mp_student
+from ..common.plotting import plt, save, write_csv
+from ..common.pools import say
+from ..common.words import gauss_fp as _gauss_fp
 
 METHODS = {
     "exact": ("exact Student t", lambda t, nu: wc.two_sided_pvalue(t, nu, "exact")),

@@ -28,7 +28,7 @@ import numpy as np
 import welch_core as wc
 from batch.jobs.job import SCENE_REVISIONS
 
-from .cache import digest
+from .cache import REPO, digest
 
 
 @dataclass(frozen=True)
@@ -59,7 +59,7 @@ def _scenes_digest() -> str:
     """The built-in scenes' identity, as the batch tool records it in a run: `batch.blender.scenes.BUILDER_VERSION`,
     which is raised whenever a builder changes what it builds (read from the source, without importing bpy; once per
     process, so a run's pools keep their keys while the file is edited). Adding a scene renders nothing again."""
-    source = (Path(__file__).resolve().parent.parent / "batch" / "blender" / "scenes.py").read_text()
+    source = (REPO / "batch" / "blender" / "scenes.py").read_text()
     found = re.search(r"^BUILDER_VERSION\s*=\s*(\d+)", source, re.MULTILINE)
     return digest("builder", found.group(1) if found else source)
 

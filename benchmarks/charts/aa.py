@@ -14,32 +14,13 @@ from pathlib import Path
 
 import numpy as np
 
-from . import checks, plan, trials
-from .plotting import plt, save, write_csv
-from .pools import load_or_render, say
-from .trials import ALPHA
-from .words import n as _n
-from .words import pct as _pct
-from .words import s as _s
-
-
-def pairs(b: plan.Budget) -> list[dict]:
-    """The unbiased pairs: name, label, reference and test pool, paired or not, runs."""
-    corner = b.pool("corner")
-    bright = next(c.ref for c in plan.cases(b) if c.group == "bright corner")
-    _sobol, blue = plan.paired_null(b)
-    return [
-        {"name": "corner", "label": "corner (paper's scene)", "ref": corner, "test": corner, "paired": False,
-         "runs": b.aa_runs},
-        {"name": "bright", "label": "bright corner", "ref": bright, "test": bright, "paired": False,
-         "runs": b.aa_other_runs},
-        {"name": "glossy", "label": "glossy scene", "ref": b.pool("glossy"), "test": b.pool("glossy"),
-         "paired": False, "runs": b.aa_other_runs},
-        {"name": "glass", "label": "corner + glass sphere (caustics)", "ref": plan.glass(b), "test": plan.glass(b),
-         "paired": False, "runs": b.aa_other_runs},
-        {"name": "sobol_blue", "label": "corner, Sobol vs blue noise, paired", "ref": corner, "test": blue,
-         "paired": True, "runs": b.aa_other_runs},
-    ]  # fmt: skip
+from ..common import checks, plan, trials
+from ..common.plotting import plt, save, write_csv
+from ..common.pools import load_or_render, say
+from ..common.trials import ALPHA
+from ..common.words import n as _n
+from ..common.words import pct as _pct
+from ..common.words import s as _s
 
 
 def summarize(pair: dict, runs: list[dict], ref, per_pass: float) -> dict:
@@ -73,7 +54,7 @@ def summarize(pair: dict, runs: list[dict], ref, per_pass: float) -> dict:
 
 def run(b: plan.Budget, cache_dir: Path, out_dir: Path) -> dict:
     rows, all_runs = [], {}
-    for pair in pairs(b):
+    for pair in plan.aa_pairs(b):
         ref, test = load_or_render(pair["ref"], cache_dir), load_or_render(pair["test"], cache_dir)
         say(f"chart 6: A/A runs of check on {pair['label']}")
         runs = checks.simulate(ref, test, pair["paired"], pair["runs"], cache_dir)

@@ -4,7 +4,7 @@ change applied to the test side (it must say `biased` within the budget).
 
 Run from the repository root::
 
-    python -m benchmarks.suite_cases [--cases glossy_rough volume ...] [--repeats 1] [--out /tmp/suite-cases]
+    python -m benchmarks.studies.suite_cases [--cases glossy_rough volume ...] [--repeats 1] [--out /tmp/suite-cases]
 
 Prints one row per case and repeat (verdicts, passes, render seconds) and writes ``suite_cases.csv`` into
 ``--out``; the figures go into docs/suite.md.
@@ -35,7 +35,9 @@ def run_case(suite, case, refs: Path, out: Path, planted: bool, repeat: int) -> 
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m benchmarks.suite_cases", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m benchmarks.studies.suite_cases", description=__doc__.splitlines()[0]
+    )
     parser.add_argument("--cases", nargs="+", metavar="NAME", help="some cases (default: all)")
     parser.add_argument("--suite", default="builtin", help="another suite file (its cases need `planted`)")
     parser.add_argument("--refs", type=Path, help="its references (default: the built-in suite's)")

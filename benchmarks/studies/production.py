@@ -1,7 +1,7 @@
 """A production-size `check`: where its wall time goes besides rendering.
 
-    python -m benchmarks.production                      # 1920x1080, 16 spp a pass, 4 passes a side (~6 min)
-    python -m benchmarks.production --resolution 320 180 --spp 1 --passes 4    # a quick try
+    python -m benchmarks.studies.production                      # 1920x1080, 16 spp a pass, 4 passes a side (~6 min)
+    python -m benchmarks.studies.production --resolution 320 180 --spp 1 --passes 4    # a quick try
 
 Runs ``python -m batch check`` (unpaired A/A, ``--tolerance off``, so it renders its whole budget and makes every
 look) and, as the baseline in the same run, the same passes rendered bare: two processes at once, as the check's
@@ -33,7 +33,7 @@ import textwrap
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
+from ..common.cache import REPO
 
 #: The bare renders of one side: build the scene as `render` does, then time the render operator alone.
 BARE = textwrap.dedent(
@@ -129,7 +129,9 @@ def check(scene: str, resolution: tuple[int, int], spp: int, passes: int, out: P
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m benchmarks.production", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m benchmarks.studies.production", description=__doc__.splitlines()[0]
+    )
     parser.add_argument("--scene", default="textured", help="a built-in scene (default textured)")
     parser.add_argument("--resolution", nargs=2, type=int, default=(1920, 1080), metavar=("W", "H"))
     parser.add_argument("--spp", type=int, default=16, help="samples per pass (default 16)")

@@ -3,8 +3,8 @@ machine may be shared and noisy: baselines and candidates are interleaved and th
 
 Run from the repository root::
 
-    python -m benchmarks.speed            # all four
-    python -m benchmarks.speed compare    # some: compare, passes, reseed, report, lobes
+    python -m benchmarks.studies.speed            # all four
+    python -m benchmarks.studies.speed compare    # some: compare, passes, reseed, report, lobes
 
 compare  ``python -m batch compare`` as a whole process (statistics files of 32 passes a side, 32x32 tiles, with
          their pixel sums) against ``python -c "import numpy, scipy.special"``, at 1024x576 and 3840x2160, and
@@ -33,16 +33,16 @@ import subprocess
 import sys
 import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 
 import welch_core as wc
+from batch.present.progress import Progress
 
-from .core_speed import best_time
+from ..common.cache import REPO
+from ..common.measure import best_time
 
 PYTHON = sys.executable
-REPO = Path(__file__).resolve().parent.parent
 SIZES = {"1024x576": (576, 1024), "3840x2160": (2160, 3840)}
 TILE, PASSES = 32, 32
 
@@ -114,6 +114,13 @@ def bench_compare(repeats: int = 7) -> None:
     print(f"  (compare at 32x32, all of it: {ours * 1e3:.1f} ms = {ours / base:.2f}x ttest_ind on the per-pass sums)")
 
 
+class _Silent(Progress):
+    """Progress whose events are made, not printed: a terminal is not the pipeline's cost."""
+
+    def emit(self, event) -> None:
+        pass
+
+
 def _bpy_modules():
     import bpy
 
@@ -133,7 +140,6 @@ def pass_times(size: int, passes: int = 24, blocks: int = 3) -> tuple[float, flo
     """Median seconds per pass of the bare render and of the pipeline, in alternating blocks of `passes`."""
     bpy, render, scenes = _bpy_modules()
     from batch.blender.run import render_passes
-    from batch.present.progress import Progress
 
     seeds = iter(range(10**6))
     scene = scenes.build_scene("corner")
@@ -147,8 +153,7 @@ def pass_times(size: int, passes: int = 24, blocks: int = 3) -> tuple[float, flo
 
     timed = {"bare": [], "pipeline": []}
     with tempfile.TemporaryDirectory() as tmp, render.PassRenderer(scene) as renderer:
-        progress = Progress(passes, json_lines=False, live=False)
-        progress._silent = True  # the events are made, not printed: a terminal is not the pipeline's cost
+        progress = _Silent(passes, json_lines=False, live=False)
 
         def pipeline():
             stats = wc.TileStats(size, size, 16, 3)
@@ -170,15 +175,13 @@ def bench_lobes(passes: int = 24, blocks: int = 3) -> None:
     bpy, render, scenes = _bpy_modules()
     from batch.blender.run import render_passes
     from batch.jobs.lobes import COMPONENTS
-    from batch.present.progress import Progress
 
     for size in (128, 256):
         timed = {}
         for name, lobes in (("plain", ()), ("lobes", COMPONENTS)):
             scene = render.open_scene(None, "glossy")
             render.configure_unbiased(scene, "CPU", 1, (size, size), "TABULATED_SOBOL", lobes=lobes)
-            progress = Progress(passes, live=False)
-            progress._silent = True
+            progress = _Silent(passes, live=False)
             times = []
             with render.PassRenderer(scene, lobes=lobes) as renderer:
                 for block in range(blocks):
@@ -279,7 +282,7 @@ BENCHES = {
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m benchmarks.speed", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.studies.speed", description=__doc__.splitlines()[0])
     parser.add_argument("benches", nargs="*", metavar="BENCH", help=f"some of {', '.join(BENCHES)} (default: all)")
     args = parser.parse_args(argv)
     unknown = sorted(set(args.benches) - set(BENCHES))

@@ -1,11 +1,11 @@
 """Cycles' blue-noise pattern against Tabulated Sobol on a cube of fog: the measurement behind
 ``docs/findings/blue_noise_volume.md``::
 
-    python -m studies.blue_noise_volume              # about 15 min on 2 cores; writes docs/findings/
-    python -m studies.blue_noise_volume --quick      # tiny budget into a temporary folder: checks the pipeline
-    python -m studies.blue_noise_volume --parts split ablation   # re-run some parts, their CSV rows replaced
-    python -m studies.blue_noise_volume --plot-only  # redraw the chart from the CSV
-    python -m studies.blue_noise_volume --save-blend docs/findings/fog.blend   # the scene for the CLI, and exit
+    python -m benchmarks.studies.blue_noise_volume          # about 15 min on 2 cores; writes docs/findings/
+    python -m benchmarks.studies.blue_noise_volume --quick  # tiny budget into a temporary folder: the pipeline
+    python -m benchmarks.studies.blue_noise_volume --parts split ablation   # re-run some parts, their rows replaced
+    python -m benchmarks.studies.blue_noise_volume --plot-only              # redraw the chart from the CSV
+    python -m benchmarks.studies.blue_noise_volume --save-blend docs/findings/fog.blend  # only the scene, for the CLI
 
 The parts, all on the minimal scene of `fog_scene` (a cube of homogeneous Volume Scatter fog, anisotropy 0.6, lit
 by one point light, black world, Cycles' default of 0 volume bounces) unless said otherwise:
@@ -42,11 +42,10 @@ import numpy as np
 
 import welch_core as wc
 from batch.blender import render, scenes
-from benchmarks.cache import REPO
-from benchmarks.plotting import plt, save, write_csv
-from benchmarks.pools import quiet_stdout, say
-from welch_core.comparison import test_tiles
-from welch_core.effect import relative_interval
+
+from ..common.cache import REPO
+from ..common.plotting import plt, save, write_csv
+from ..common.pools import quiet_stdout, say
 
 ALPHA = 0.01  # 99 % intervals, and the tile test's level
 
@@ -308,10 +307,11 @@ def _region(run: Run) -> wc.TileStats:
 
 
 def difference(ref: Run, test: Run) -> dict:
-    """(test - ref) / ref of the region mean with its 99 % interval and Welch's p; the tile test at every scale."""
-    tested = test_tiles(_region(ref), _region(test), "welch")
-    result, ref_mean = tested.result, float(ref.means.mean())
-    low, high = relative_interval(tested, ALPHA)
+    """(test - ref) / ref of the region mean with its 99 % interval and Welch's p (`compare` on the one-tile runs of
+    the region means); the tile test at every scale."""
+    region = wc.compare(_region(ref), _region(test), alpha=ALPHA, test_kind="welch")
+    result, ref_mean = region.result, float(ref.means.mean())
+    low, high = region.effect.ci_low, region.effect.ci_high
     tiles = wc.compare(ref.stats, test.stats, alpha=ALPHA)
     rel = tiles.effect.rel_diff
     return {
@@ -608,7 +608,7 @@ def read_rows(path: Path) -> list[dict]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
-        prog="python -m studies.blue_noise_volume",
+        prog="python -m benchmarks.studies.blue_noise_volume",
         description="Blue noise against Tabulated Sobol on a cube of fog (docs/findings/blue_noise_volume.md).",
     )
     parser.add_argument("--quick", action="store_true", help="tiny budget (checks the pipeline, not the figures)")

@@ -1,31 +1,28 @@
 """The futility stop of `equivalent`, on rendered unbiased pairs: passes and seconds it saves, the verdicts it gives
 away, and how often the tile size it recommends reaches `equivalent`.
 
-    python -m benchmarks.futility                 # pools in benchmarks/cache/, writes docs/benchmarks/futility.csv
-    python -m benchmarks.futility --quick --out /tmp/futility    # small pools and few runs: checks the pipeline
+    python -m benchmarks.studies.futility            # pools in benchmarks/cache/, writes docs/benchmarks/futility.csv
+    python -m benchmarks.studies.futility --quick --out /tmp/futility    # small pools and few runs: the pipeline
 
-A/A pools of built-in scenes at 64x64, 1 spp a pass; each run is `check` simulated on them (`welch_core.sequential_look`
-at every look, unpaired, disjoint halves of a random order of the pool's seeds, tolerance 1 %, 16-px tiles, budget
-256 passes a side, 200 on the textured scene's smaller pool). Each run is made with the futility stop and without it
-(`FUTILITY_MARGIN` infinite) on the same passes; a run stopped for futility is made again with `--equivalence-tile`
-at the finest size its outcome names as within the budget. Seconds are passes a side times both sides' median pass
-render seconds.
+A/A pools of built-in scenes at 64x64, 1 spp a pass; each run is `check` simulated on them
+(`welch_core.sequential_look` at every look, unpaired, disjoint halves of a random order of the pool's seeds,
+tolerance 1 %, 16-px tiles, budget 256 passes a side, 200 on the textured scene's smaller pool). Each run is made with
+the futility stop and without it (``SequentialPlan(futility=False)``, what ``--no-futility`` runs) on the same
+passes; a run stopped for futility is made again with `--equivalence-tile` at the finest size its outcome names as
+within the budget. Seconds are passes a side times both sides' median pass render seconds.
 """
 
 from __future__ import annotations
 
-import contextlib
-import math
 from pathlib import Path
 
 import numpy as np
 
 import welch_core as wc
-from welch_core import decision
 
-from .cache import study_arguments
-from .plotting import write_csv
-from .pools import PoolSpec, load_or_render, say
+from ..common.cache import study_arguments
+from ..common.plotting import write_csv
+from ..common.pools import PoolSpec, load_or_render, say
 
 TILE, RESOLUTION, TOLERANCE, ALPHA = 16, 64, 0.01, 0.01
 SCENES = (("corner", "diffuse corner", 1000), ("glossy", "glossy room", 1000),
@@ -37,18 +34,14 @@ FULL = {"runs": 60, "budget": 256, "detection_runs": 30, "detection_pool": 400}
 QUICK = {"runs": 2, "budget": 20, "pool": 48, "detection_runs": 2, "detection_pool": 40}
 
 
-@contextlib.contextmanager
-def without_futility():
-    saved = decision.FUTILITY_MARGIN
-    decision.FUTILITY_MARGIN = math.inf
-    try:
-        yield
-    finally:
-        decision.FUTILITY_MARGIN = saved
-
-
-def one_check(pool, ref_order, test_order, budget: int, claim: int | None = None, test_pool=None) -> wc.Outcome:
-    plan = wc.SequentialPlan(max_passes=budget, alpha=ALPHA, tolerance=TOLERANCE, equivalence_tile=claim)
+def one_check(
+    pool, ref_order, test_order, budget: int, claim: int | None = None, test_pool=None, futility: bool = True
+) -> wc.Outcome:
+    """`check` simulated on the passes `ref_order` of `pool` and `test_order` of `test_pool` (default `pool`),
+    with or without the futility stop."""
+    plan = wc.SequentialPlan(
+        max_passes=budget, alpha=ALPHA, tolerance=TOLERANCE, equivalence_tile=claim, futility=futility
+    )
     fractions, test_pool = [], test_pool or pool
     for n in wc.look_schedule(budget):
         fractions.append(n / budget)
@@ -70,8 +63,7 @@ def measure(budget: dict, cache: Path) -> list[dict]:
             order = rng.permutation(pool.n)
             ref_order, test_order = order[: pool.n // 2], order[pool.n // 2 :]
             stopped = one_check(pool, ref_order, test_order, most)
-            with without_futility():
-                full = one_check(pool, ref_order, test_order, most)
+            full = one_check(pool, ref_order, test_order, most, futility=False)
             recommended = None
             if stopped.reason == "futile":
                 within = [x.tile for x in stopped.scales if x.projected is not None and x.projected <= most]
@@ -122,8 +114,9 @@ def detection(budget: dict, cache: Path) -> list[dict]:
                 order = rng.permutation(size)
                 ref_order, test_order = (order, order) if paired else (order[: size // 2], order[size // 2 :])
                 found["with"].append(one_check(reference, ref_order, test_order, most, test_pool=changed))
-                with without_futility():
-                    found["without"].append(one_check(reference, ref_order, test_order, most, test_pool=changed))
+                found["without"].append(
+                    one_check(reference, ref_order, test_order, most, test_pool=changed, futility=False)
+                )
             for method, outcomes in found.items():
                 biased = [min(o.n_ref, o.n_test) for o in outcomes if o.verdict == "biased"]
                 rows.append({"scene": label, "run": "paired" if paired else "unpaired", "budget": most,

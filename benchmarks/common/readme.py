@@ -1,12 +1,15 @@
-"""docs/benchmarks/README.md, written from the figures of the last run (figures.json) so text and charts agree."""
+"""docs/benchmarks/README.md, written from the figures of the last run (figures.json) so text and charts agree.
+
+Each chart writes its own section (its module's ``section(figures)``); `render` puts them in order between the
+introduction and the parts that read several charts' figures (the goals, the studies, the sizes)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-from . import aa, cost, decision, detection, equivalence, pvalues, scales, stability
 from .words import WELCH
 from .words import best as _best
 from .words import fine_share as _fine_share
@@ -14,10 +17,6 @@ from .words import n as _n
 from .words import pct as _pct
 from .words import s as _s
 from .words import x as _x
-
-#: Each chart's module writes its own section (`section(figures)`), in this order.
-SECTIONS = {"chart1": detection, "chart2": pvalues, "chart3": stability, "chart4": cost, "chart5": decision,
-            "chart6": aa, "chart7": scales, "chart8": equivalence}  # fmt: skip
 
 
 def goal_lines(f: dict) -> list[str]:
@@ -119,12 +118,18 @@ def headlines(f: dict) -> list[str]:
     return out
 
 
-def write(out_dir: Path, f: dict) -> None:
-    """Write README.md into `out_dir` from the figures `f`."""
-    (Path(out_dir) / "README.md").write_text(render(f))
+#: A chart's section: its lines of the README from the figures of every chart.
+Section = Callable[[dict], list[str]]
 
 
-def render(f: dict) -> str:
+def write(out_dir: Path, f: dict, sections: dict[str, Section]) -> None:
+    """Write README.md into `out_dir` from the figures `f` (see `render`)."""
+    (Path(out_dir) / "README.md").write_text(render(f, sections))
+
+
+def render(f: dict, sections: dict[str, Section]) -> str:
+    """The README from the figures `f`; `sections` maps each chart's key in `f` ("chart1", ...) to its section, in
+    the order they are written (a chart without figures is left out)."""
     m = f["machine"]
     minutes = f.get("last_run_seconds", 0) / 60
     how = (f"from an empty cache in {minutes:.0f} minutes ({f['pools_rendered']} pools rendered)"
@@ -135,9 +140,9 @@ def render(f: dict) -> str:
                           )]  # fmt: skip
     for chart, note in sorted(f.get("notes", {}).items()):
         parts.append(f"Chart {chart}: {note}\n")
-    for key, module in SECTIONS.items():
+    for key, section in sections.items():
         if key in f:
-            parts += module.section(f)
+            parts += section(f)
     goals = goal_lines(f)
     if goals:
         parts += [GOALS] + goals
@@ -174,21 +179,22 @@ STUDIES = """
 
 Each is its own command, run from the repository root on the same cached pools; its files sit beside this README.
 
-- `python -m benchmarks.power` (power.csv, power_aa.csv, power.png): passes a side to `biased` of `check` at its
+- `python -m benchmarks.studies.power` (power.csv, power_aa.csv, power.png): passes a side to `biased` of `check` at its
   defaults against the best fixed design in hindsight and a matched-filter oracle told the bias pattern, with and
   without the early design (half of each `biased` level spent by 16 passes a side), on chart 5's cases and a
   rendered glass caustic and fog volume; and the A/A pairs of chart 6 under both designs. Charts 5, 6 and 8 above
   were last run before the early design existed: power.csv holds chart 5's comparison for the current one.
   Findings: [docs/findings/power.md](../findings/power.md).
-- `python -m benchmarks.moderated` (moderated.csv): moderated variances (limma-trend empirical Bayes across tiles)
-  against `check`'s t-tests at 2–8 passes a side: power on the bias cases, `biased` on the A/A pairs.
-- `python -m benchmarks.sparse` (sparse.csv, sparse.png): changes that alter a few light paths, paired alone
+- `python -m benchmarks.studies.moderated` (moderated.csv): moderated variances (limma-trend empirical Bayes across
+  tiles) against `check`'s t-tests at 2–8 passes a side: power on the bias cases, `biased` on the A/A pairs.
+- `python -m benchmarks.studies.sparse` (sparse.csv, sparse.png): changes that alter a few light paths, paired alone
   against the default and Welch's test
   ([docs/findings/sparse_paired_differences.md](../findings/sparse_paired_differences.md)).
-- `python -m benchmarks.production`: a 1920×1080 `check`, its wall time split into rendering and everything else.
-- `python -m benchmarks.unequal` (unequal.csv, unequal.png): `biased` on rendered A/A splits whose sides differ in
-  passes (4 v 256 to 256 v 8, suites blessed at 256 and 512), before and after the permutation test, with
-  detection and paired A/A beside them. `python -m benchmarks.futility` (futility.csv): the futility stop of
+- `python -m benchmarks.studies.production`: a 1920×1080 `check`, its wall time split into rendering and everything
+  else.
+- `python -m benchmarks.studies.unequal` (unequal.csv, unequal.png): `biased` on rendered A/A splits whose sides differ
+  in passes (4 v 256 to 256 v 8, suites blessed at 256 and 512), before and after the permutation test, with
+  detection and paired A/A beside them. `python -m benchmarks.studies.futility` (futility.csv): the futility stop of
   `equivalent` on rendered A/A pairs. Findings: [docs/findings/unequal_passes.md](../findings/unequal_passes.md).
 """
 

@@ -26,14 +26,14 @@ import numpy as np
 import welch_core as wc
 from batch.present.summary import notes
 
-from . import checks, plan, trials
-from .cache import digest, memo_json, welch_digest
-from .plotting import plt, save, write_csv
-from .pools import load_or_render, say
-from .trials import ALPHA
-from .words import p as _p
-from .words import pct as _pct
-from .words import rate as _rate
+from ..common import checks, plan, trials
+from ..common.cache import digest, memo_json, welch_digest
+from ..common.plotting import plt, save, write_csv
+from ..common.pools import load_or_render, say
+from ..common.trials import ALPHA
+from ..common.words import p as _p
+from ..common.words import pct as _pct
+from ..common.words import rate as _rate
 
 BINS = 20
 FLAG_SHARE = 0.05

@@ -3,8 +3,8 @@ model of the speed-up on N machines.
 
 Run from the repository root (needs the ``workers`` extra)::
 
-    python -m benchmarks.workers                      # corner scene, 64x64, 16 spp a pass, 96 passes, twice
-    python -m benchmarks.workers --passes 192 --spp 32 --workers 1 2
+    python -m benchmarks.studies.workers                      # corner scene, 64x64, 16 spp a pass, 96 passes, twice
+    python -m benchmarks.studies.workers --passes 192 --spp 32 --workers 1 2
 
 Measured, each on a fresh statistics file: one process without Dask (``python -m batch render``, Cycles' threads
 on every core), then ``render_distributed`` with a LocalCluster of 1, 2, ... workers (one Dask thread each, the
@@ -32,7 +32,6 @@ import statistics
 import sys
 import tempfile
 import time
-from pathlib import Path
 
 from batch.jobs import distributed
 from batch.jobs.distributed import PassPool, default_chunk, local_threads
@@ -40,7 +39,6 @@ from batch.jobs.job import RenderJob
 from batch.jobs.side import run_job
 from batch.present.progress import Progress
 
-REPO = Path(__file__).resolve().parent.parent
 MACHINES = (1, 2, 4, 8, 16, 64)
 RUN_PASSES = (1_000, 10_000)
 
@@ -106,7 +104,7 @@ def speedup(s: float, c: float, r: float, t: float, o: float, passes: int, machi
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m benchmarks.workers", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.studies.workers", description=__doc__.splitlines()[0])
     parser.add_argument("--scene", default="corner")
     parser.add_argument("--resolution", type=int, default=64)
     parser.add_argument("--spp", type=int, default=16)

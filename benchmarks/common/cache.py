@@ -14,14 +14,16 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-DEFAULT_DIR = Path(__file__).resolve().parent / "cache"
-REPO = Path(__file__).resolve().parent.parent
+BENCHMARKS = Path(__file__).resolve().parents[1]
+DEFAULT_DIR = BENCHMARKS / "cache"
+REPO = BENCHMARKS.parent
 
 
 def study_arguments(module: str, doc: str, quick: str, argv: list[str] | None) -> argparse.Namespace:
-    """The options every study beside the charts takes (``python -m benchmarks.<module>``): ``--quick`` (`quick`
-    says what it runs), ``--out`` (default docs/benchmarks) and ``--cache`` (its pools, default this cache)."""
-    parser = argparse.ArgumentParser(prog=f"python -m benchmarks.{module}", description=doc.splitlines()[0])
+    """The options every study beside the charts takes (``python -m benchmarks.studies.<module>``): ``--quick``
+    (`quick` says what it runs), ``--out`` (default docs/benchmarks) and ``--cache`` (its pools, default this
+    cache)."""
+    parser = argparse.ArgumentParser(prog=f"python -m benchmarks.studies.{module}", description=doc.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help=quick)
     parser.add_argument("--out", type=Path, default=REPO / "docs" / "benchmarks", help="output folder")
     parser.add_argument("--cache", type=Path, default=DEFAULT_DIR, help="pool cache folder")

@@ -1,7 +1,7 @@
 """`biased` on unbiased pairs whose sides differ in passes, rendered: before and after the permutation test.
 
-    python -m benchmarks.unequal                 # pools in benchmarks/cache/, writes docs/benchmarks/unequal.{csv,png}
-    python -m benchmarks.unequal --quick --out /tmp/unequal    # small pools and few splits: checks the pipeline
+    python -m benchmarks.studies.unequal         # pools in benchmarks/cache/, writes docs/benchmarks/unequal.{csv,png}
+    python -m benchmarks.studies.unequal --quick --out /tmp/unequal    # small pools and few splits: the pipeline
 
 A/A pools of one built-in scene at 64x64, 1 spp a pass (a glass caustic, the glossy room, the diffuse corner), split
 at random (1000 splits) into disjoint reference and test passes of the given counts; `compare` at alpha 0.01 with
@@ -19,7 +19,6 @@ with its Clopper-Pearson 95 % interval.
 
 from __future__ import annotations
 
-import contextlib
 import time
 from pathlib import Path
 
@@ -27,11 +26,11 @@ import numpy as np
 from scipy import stats
 
 import welch_core as wc
-from welch_core import comparison, looks
 
-from .cache import study_arguments
-from .plotting import write_csv
-from .pools import PoolSpec, load_or_render, say
+from ..common import whatif
+from ..common.cache import study_arguments
+from ..common.plotting import write_csv
+from ..common.pools import PoolSpec, load_or_render, say
 
 ALPHA, TILE, RESOLUTION = 0.01, 16, 64
 SCENES = (("corner_glass", "glass caustic"), ("glossy", "glossy room"), ("corner", "diffuse corner"))
@@ -44,17 +43,6 @@ FULL = {"pool": 1000, "changed": 400, "splits": 1000, "detection_splits": 400, "
         "blessed": (256, 512), "detection": ((64, 64), (256, 16)), "paired": (4, 8, 32)}  # fmt: skip
 QUICK = {"pool": 80, "changed": 40, "splits": 4, "detection_splits": 4, "suite": 2, "suite_budget": 8,
          "blessed": (24,), "detection": ((8, 8), (24, 4)), "paired": (4,)}  # fmt: skip
-
-
-@contextlib.contextmanager
-def without_permutation():
-    """The tool as it was: Welch's t-tests alone decide `biased` whatever the pass counts."""
-    saved = comparison.needs_resampling, looks.needs_resampling
-    comparison.needs_resampling = looks.needs_resampling = lambda *args: False
-    try:
-        yield
-    finally:
-        comparison.needs_resampling, looks.needs_resampling = saved
 
 
 def interval(k: int, n: int) -> tuple[float, float]:
@@ -85,7 +73,7 @@ def fixed(pools, n_ref: int, n_test: int, runs: int, seed) -> dict[str, list[str
     rng = np.random.default_rng(seed)
     for _ in range(runs):
         ref, test = _split(rng, pools, n_ref, n_test)
-        with without_permutation():
+        with whatif.without_permutation():
             out["before"].append(wc.compare(ref, test, ALPHA).verdict.label)
         out["after"].append(wc.compare(ref, test, ALPHA).verdict.label)
     return out
@@ -104,7 +92,7 @@ def suite_replay(pool, blessed: int, budget: int, runs: int, seed) -> dict[str, 
         order = picked[blessed:]
         fractions, before, after = [], None, "inconclusive"
         for n in wc.look_schedule(budget):
-            fractions.append(looks.information_fraction(n, budget, blessed))
+            fractions.append(wc.information_fraction(n, budget, blessed))
             look = wc.sequential_look(ref, pool.stats(order[:n], TILE), plan, fractions)
             if before is None and look.outcome.resampling is not None:
                 before = "biased"
