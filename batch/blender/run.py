@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 import signal
 import time
+from collections.abc import Iterator
 
 from .._siblings import welch_core as wc
 from ..errors import BatchError
@@ -16,6 +17,7 @@ from ..jobs import command, protocol
 from ..jobs.job import RenderJob
 from ..jobs.launch import THREADS_ENV
 from ..jobs.lock import OutputLock, output_folder
+from ..jobs.loop import Arrival, Run, render_loop, resumed
 from ..jobs.overrides import apply_overrides, parse_override
 from ..jobs.passes import add_layered_pass, add_pass
 from ..jobs.protocol import ChunkRequest, parse_request
@@ -93,41 +95,32 @@ def limit_threads(scene, value: str | None = None) -> None:
     scene.render.threads = threads
 
 
-def _start_stats(job: RenderJob, size, info: wc.RunInfo) -> wc.TileStats:
-    """A new TileStats, or the checkpoint in `job.out` when resuming (checked to be the same run); `size()` is
-    the image's (width, height)."""
+def _start(job: RenderJob, size, info: wc.RunInfo, scene) -> tuple[wc.TileStats, dict[str, wc.TileStats]]:
+    """The statistics and layers (`job.lobes`: light components, light groups) a run starts from: new ones, or
+    the checkpoint in `job.out` when resuming (checked to be the same run); `size()` is the image's (width,
+    height)."""
     if os.path.exists(job.out) and not job.resume:
         raise RunError(f"{job.out} already exists: pass --resume to continue it, or choose another --out")
     width, height = size()
     if job.tile > min(width, height):
         raise RunError(f"--tile {job.tile} is larger than the image {width}x{height}")
-    fresh = wc.TileStats(height, width, job.tile, 3, info)
-    if not os.path.exists(job.out):
-        return fresh
-    stats = wc.load_stats(job.out)
-    try:
-        stats.same_run(fresh, "resume")
-    except wc.WelchInputError as exc:
-        raise RunError(f"{job.out}: {exc}") from None
-    extra = sorted(set(stats.seeds) - set(job.seeds))
-    if extra:
-        raise RunError(f"can't resume {job.out}: it holds seed {extra[0]}, which is not in --seeds")
-    return stats
-
-
-def _start_layers(job: RenderJob, scene, stats: wc.TileStats) -> dict[str, wc.TileStats]:
-    """The layers of `job.lobes` (light components, light groups), new or those of the checkpoint."""
     names = []
     if job.lobes:
         from . import render  # imports bpy: layers are Cycles'
 
         names = render.layer_names(scene, job.lobes)
-    if not os.path.exists(job.out):
-        return {name: wc.TileStats(stats.height, stats.width, stats.tile, 3, stats.info) for name in names}
-    layers = wc.load_layers(job.out)
+    fresh = wc.TileStats(height, width, job.tile, 3, info)
+    stats, layers = resumed(job, fresh)
+    if stats is fresh:
+        return stats, {name: _like(stats) for name in names}
     if list(layers) != names:
         raise RunError(f"can't resume {job.out}: it has layers {list(layers) or 'none'}, this run {names or 'none'}")
-    return layers
+    return stats, layers
+
+
+def _like(stats: wc.TileStats) -> wc.TileStats:
+    """New, empty statistics of the same run as `stats`."""
+    return wc.TileStats(stats.height, stats.width, stats.tile, stats.channels, stats.info)
 
 
 def render_run(job: RenderJob, progress: Progress, requests=None) -> wc.TileStats:
@@ -151,8 +144,7 @@ def render_run(job: RenderJob, progress: Progress, requests=None) -> wc.TileStat
             renderer = render.PassRenderer(scene, lobes=job.lobes)
         with renderer, StopRequest() as stop:
             renderer.stop = stop  # a command's pass ends at once on a stop; a Cycles pass is short
-            stats = _start_stats(job, lambda: _image_size(job, scene, renderer), info)
-            layers = _start_layers(job, scene, stats)
+            stats, layers = _start(job, lambda: _image_size(job, scene, renderer), info, scene)
             done = set(stats.seeds)
             todo = [seed for seed in job.seeds if seed not in done]
             progress.start(len(job.seeds) - len(todo), job.out)
@@ -161,7 +153,7 @@ def render_run(job: RenderJob, progress: Progress, requests=None) -> wc.TileStat
             else:
                 for request in requests:
                     if isinstance(request, ChunkRequest):
-                        _render_chunk(job, renderer, request, stats, progress, stop)
+                        _render_chunk(job, renderer, request, stats, progress, stop, layers)
                         continue
                     count = request
                     chunk, todo = todo[: max(count, 0)], todo[max(count, 0) :]
@@ -185,19 +177,21 @@ def _image_size(job: RenderJob, scene, renderer) -> tuple[int, int]:
 
 
 def _render_chunk(
-    job: RenderJob, renderer, request: ChunkRequest, like: wc.TileStats, progress: Progress, stop
+    job: RenderJob, renderer, request: ChunkRequest, like: wc.TileStats, progress: Progress, stop, layers=None
 ) -> None:
-    """Render exactly the seeds of `request` into a new statistics file of the same run as `like`, saved once at
-    the end (with the passes done so far when the chunk stops early), then tell the caller with a `Saved` event."""
+    """Render exactly the seeds of `request` into a new statistics file of the same run as `like` (with the
+    layers of `layers`), saved once at the end (with the passes done so far when the chunk stops early), then
+    tell the caller with a `Saved` event."""
     allowed = set(job.seeds)
     unknown = [seed for seed in request.seeds if seed not in allowed]
     if unknown:
         raise RunError(f"a chunk asks for seed {unknown[0]}, which is not in --seeds of this job")
-    chunk = wc.TileStats(like.height, like.width, like.tile, like.channels, like.info)
+    chunk, chunk_layers = _like(like), {name: _like(like) for name in layers or {}}
     # Saved by render_passes once it ends, however it ends (with the passes done so far on a failure or a stop).
-    render_passes(renderer, request.seeds, chunk, progress, job.on_nan, request.out, len(request.seeds) + 1, stop)
+    render_passes(renderer, request.seeds, chunk, progress, job.on_nan, request.out, len(request.seeds) + 1, stop,
+                  chunk_layers)  # fmt: skip
     if chunk.n == 0:
-        wc.save_stats(request.out, chunk)  # every pass was skipped (--on-nan skip): the file still answers
+        wc.save_stats(request.out, chunk, chunk_layers)  # every pass was skipped (--on-nan skip): it still answers
     progress.emit(protocol.Saved(out=request.out, passes=chunk.n))
 
 
@@ -222,38 +216,36 @@ def render_passes(
     stop=None,
     layers: dict[str, wc.TileStats] | None = None,
 ) -> None:
-    """Render `seeds` into `stats` (and `layers`, each pass's light components and light groups); save `out` every
-    `checkpoint_every` passes, at the end and on interruption.
+    """Render `seeds` into `stats` (and `layers`, each pass's light components and light groups) through the one
+    render loop (`batch.jobs.loop.render_loop`): `out` saved every `checkpoint_every` passes, at the end and on
+    interruption.
 
     `stop`, if given, is asked between passes whether to stop (raising KeyboardInterrupt, as Ctrl-C does).
     """
-    pending = 0
-    try:
-        for seed in seeds:
-            if stop is not None and stop.requested:
-                raise KeyboardInterrupt
-            start = time.perf_counter()
-            try:
-                warn = progress.warning
-                if layers:
-                    added = add_layered_pass(stats, layers, renderer.render_layers(seed), seed, on_nan, warn)
-                else:
-                    added = add_pass(stats, renderer.render(seed), seed, on_nan, warn)
-                if not added:
-                    continue
-            except wc.WelchInputError as exc:
-                # --on-nan answers non-finite pixels only: another size or layer set is no pass of this run
-                hint = " (use --on-nan skip or keep to go on)" if "non-finite" in str(exc) else ""
-                raise RunError(f"{exc}{hint}") from None
-            pending += 1
+    run = Run(out, (), stats, layers)
+    render_loop(_rendered(renderer, seeds, run, progress, on_nan, stop), run, progress, checkpoint_every)
+
+
+def _rendered(renderer, seeds, run: Run, progress: Progress, on_nan: str, stop) -> Iterator[Arrival]:
+    """Each pass of `seeds` as it is rendered here (a skipped one, `on_nan`, arrives not at all)."""
+    for seed in seeds:
+        if stop is not None and stop.requested:
+            raise KeyboardInterrupt
+        start = time.perf_counter()
+        one, layers = _like(run.stats), {name: _like(run.stats) for name in run.layers}
+        try:
+            if layers:
+                added = add_layered_pass(one, layers, renderer.render_layers(seed), seed, on_nan, progress.warning)
+            else:
+                added = add_pass(one, renderer.render(seed), seed, on_nan, progress.warning)
+        except wc.WelchInputError as exc:
+            # --on-nan answers non-finite pixels only: another size or layer set is no pass of this run
+            hint = " (use --on-nan skip or keep to go on)" if "non-finite" in str(exc) else ""
+            raise RunError(f"{exc}{hint}") from None
+        if added:
             # A command's first pass may have been rendered earlier, to learn the image size: its time counts.
-            progress.pass_done(seed, time.perf_counter() - start + getattr(renderer, "replayed_seconds", 0.0))
-            if out and pending >= checkpoint_every:
-                wc.save_stats(out, stats, layers)
-                pending = 0
-    finally:
-        if out and pending:
-            wc.save_stats(out, stats, layers)  # also on Ctrl-C or a failed pass: nothing rendered is lost
+            seconds = time.perf_counter() - start + getattr(renderer, "replayed_seconds", 0.0)
+            yield Arrival(one, layers, (seconds,))
 
 
 class StopRequest:

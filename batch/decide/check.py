@@ -543,8 +543,6 @@ def check_job(request: CheckRequest) -> CheckJob:
         raise BatchError("give --max-passes or --max-seconds, not both")
     if args.blend is not None and args.scene is not None:
         raise BatchError(f"give a .blend file or a built-in scene, not both ({args.blend}, {args.scene!r})")
-    if args.lobes and (args.workers or args.scheduler):
-        raise BatchError("--lobes does not go with --workers or --scheduler yet: render the layers in one process")
     if args.test_command and not args.pass_command:
         raise BatchError("--test-command needs --command: the reference side's passes are rendered the same way")
     if args.blend is None and args.scene is None and not args.pass_command:

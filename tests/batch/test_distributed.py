@@ -210,8 +210,6 @@ def test_pool_arguments_are_checked_before_anything_starts(tmp_path):
     with pytest.raises(BatchError, match="give --workers or --scheduler, not both"):
         with dist.cluster(2, "tcp://127.0.0.1:1"):
             pass
-    with pytest.raises(BatchError, match="--lobes does not go with --workers or --scheduler yet"):
-        dist.PassPool(job.replace(lobes=("diffuse",)), dist.Cluster("tcp://127.0.0.1:1"))
     with pytest.raises(BatchError, match="--chunk must be a positive integer, got 0"):
         dist.render_distributed(job, Recorder(24), dist.Cluster("tcp://127.0.0.1:1"), chunk=0)
 
@@ -231,7 +229,7 @@ def test_a_pool_takes_each_seed_of_its_job_once(tmp_path):
 
 
 def test_an_unreachable_scheduler_is_an_input_error(tmp_path, monkeypatch):
-    monkeypatch.setattr(dist, "CONNECT_TIMEOUT", "1s")
+    monkeypatch.setattr(dist.clusters, "CONNECT_TIMEOUT", "1s")
     with pytest.raises(BatchError, match="can't reach the Dask scheduler at tcp://127.0.0.1:9"):
         dist.PassPool(make_job(tmp_path / "x.npz"), dist.Cluster("tcp://127.0.0.1:9"))
 
@@ -333,6 +331,29 @@ def test_two_local_workers_give_the_statistics_of_one_process(reference, tmp_pat
     assert sorted(e.seed for e in progress.events[1:-1]) == list(SEEDS)
     assert [e.done for e in progress.events[1:-1]] == list(range(1, 25))
     assert progress.events[-1] == protocol.Finished(out=job.out, passes=24)
+
+
+@pytest.mark.slow
+def test_layers_render_on_workers_as_in_one_process(cluster, tmp_path):
+    """``--lobes`` with a pool: each chunk carries its layers, and the file (image and layers, passes in seed order)
+    is the one a single process writes; a resumed run takes the layers on."""
+    job = make_job(tmp_path / "one.npz", seeds=tuple(range(10)), lobes=("diffuse", "glossy", "emission"))
+    run_job(job, Recorder(10))
+    one, one_layers = wc.load_stats(job.out), wc.load_layers(job.out)
+    pooled = job.replace(out=str(tmp_path / "pool.npz"), seeds=tuple(range(6)))
+    dist.render_distributed(pooled, Recorder(6), dist.Cluster(cluster, threads=1), chunk=2)
+    resumed = pooled.replace(seeds=job.seeds, resume=True)
+    stats = dist.render_distributed(resumed, Recorder(10), dist.Cluster(cluster, threads=1), chunk=3)
+    assert_same_statistics(stats, one)
+    layers = wc.load_layers(pooled.out)
+    assert list(layers) == list(one_layers) == ["diffuse", "glossy", "emission"]
+    for name, layer in layers.items():
+        assert_same_statistics(layer, one_layers[name])
+    other = pooled.replace(out=str(tmp_path / "other.npz"), lobes=("diffuse",), resume=True)
+    shutil.copy(pooled.out, other.out)
+    refused = r"can't resume .*other.npz: it has layers \['diffuse', 'glossy', 'emission'\], this run \['diffuse'\]"
+    with pytest.raises(BatchError, match=refused):
+        dist.render_distributed(other.replace(seeds=tuple(range(12))), Recorder(12), dist.Cluster(cluster), chunk=2)
 
 
 @pytest.mark.slow
@@ -495,7 +516,7 @@ def test_a_port_that_accepts_and_never_answers_is_not_a_scheduler(tmp_path, monk
     server.listen(8)
     accepted = []
     threading.Thread(target=lambda: [accepted.append(server.accept()) for _ in range(8)], daemon=True).start()
-    monkeypatch.setattr(dist, "HANDSHAKE_SECONDS", 2.0)
+    monkeypatch.setattr(dist.clusters, "HANDSHAKE_SECONDS", 2.0)
     address = f"tcp://127.0.0.1:{server.getsockname()[1]}"
     started = time.monotonic()
     with pytest.raises(BatchError, match=re.escape(f"the Dask scheduler at {address} accepts connections but does")):

@@ -1,0 +1,80 @@
+"""What crosses from a Dask worker to the client: a chunk's passes (`ChunkResult`, with their layers) or the job
+error that stopped it (`ChunkError`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..._siblings import welch_core as wc
+from ..loop import Arrival
+
+
+@dataclass(frozen=True, eq=False)
+class ChunkResult:
+    """The passes of one chunk as a worker sends them back (by Dask's pickling): per-pass tile sums, shape
+    (n, tiles_y, tiles_x, channels) in the order of `seeds`; the per-pixel sum over these passes (None when not
+    kept); the grid and the `RunInfo` (as JSON) of the run; each pass's render seconds; the chunk's seconds in
+    the worker, request to result; its warnings; which worker rendered it; and the same for each layer of the
+    passes (light components, light groups: name -> (sums, pixel sum)). One way out (`from_stats`), one way in
+    (`stats`, `arrival`)."""
+
+    seeds: tuple[int, ...]
+    sums: np.ndarray
+    pixel_sum: np.ndarray | None
+    height: int
+    width: int
+    tile: int
+    info: dict
+    seconds: tuple[float, ...] = ()
+    wall_seconds: float = 0.0
+    warnings: tuple[str, ...] = ()
+    worker: str = ""
+    layers: dict[str, tuple[np.ndarray, np.ndarray | None]] = field(default_factory=dict)
+
+    @classmethod
+    def from_stats(
+        cls, stats: wc.TileStats, seconds=(), wall_seconds=0.0, warnings=(), worker="", layers=None
+    ) -> ChunkResult:
+        def arrays(run: wc.TileStats):
+            pixels = None if run.pixel_sum is None else np.ascontiguousarray(run.pixel_sum)
+            return np.ascontiguousarray(run.sums), pixels
+
+        sums, pixel_sum = arrays(stats)
+        return cls(
+            seeds=tuple(int(s) for s in stats.seeds),
+            sums=sums,
+            pixel_sum=pixel_sum,
+            height=stats.height,
+            width=stats.width,
+            tile=stats.tile,
+            info=stats.info.to_json(),
+            seconds=tuple(float(s) for s in seconds),
+            wall_seconds=float(wall_seconds),
+            warnings=tuple(warnings),
+            worker=worker,
+            layers={name: arrays(layer) for name, layer in (layers or {}).items()},
+        )
+
+    def stats(self) -> wc.TileStats:
+        return self._run(self.sums, self.pixel_sum)
+
+    def arrival(self) -> Arrival:
+        """The chunk's passes and layers for the render loop (`batch.jobs.loop`)."""
+        layers = {name: self._run(sums, pixels) for name, (sums, pixels) in self.layers.items()}
+        return Arrival(self.stats(), layers, None, self.warnings, self.worker)
+
+    def _run(self, sums, pixel_sum) -> wc.TileStats:
+        info = wc.RunInfo.from_json(self.info)
+        return wc.TileStats.from_sums(sums, self.seeds, self.height, self.width, self.tile, info, pixel_sum=pixel_sum)
+
+
+@dataclass(frozen=True)
+class ChunkError:
+    """A chunk a worker could not render because of the job itself (a .blend it can't open, a NaN pass with
+    ``--on-nan stop``): sent back as a result, not raised, so that Dask does not run it again."""
+
+    seeds: tuple[int, ...]
+    message: str
+    worker: str
