@@ -227,17 +227,18 @@ def render_passes(
 
 
 def _rendered(renderer, seeds, run: Run, progress: Progress, on_nan: str, stop) -> Iterator[Arrival]:
-    """Each pass of `seeds` as it is rendered here (a skipped one, `on_nan`, arrives not at all)."""
+    """Each pass of `seeds` as it is rendered here, added to `run` at once (a skipped one, `on_nan`, arrives not
+    at all)."""
     for seed in seeds:
         if stop is not None and stop.requested:
             raise KeyboardInterrupt
         start = time.perf_counter()
-        one, layers = _like(run.stats), {name: _like(run.stats) for name in run.layers}
         try:
-            if layers:
-                added = add_layered_pass(one, layers, renderer.render_layers(seed), seed, on_nan, progress.warning)
+            if run.layers:
+                images = renderer.render_layers(seed)
+                added = add_layered_pass(run.stats, run.layers, images, seed, on_nan, progress.warning)
             else:
-                added = add_pass(one, renderer.render(seed), seed, on_nan, progress.warning)
+                added = add_pass(run.stats, renderer.render(seed), seed, on_nan, progress.warning)
         except wc.WelchInputError as exc:
             # --on-nan answers non-finite pixels only: another size or layer set is no pass of this run
             hint = " (use --on-nan skip or keep to go on)" if "non-finite" in str(exc) else ""
@@ -245,7 +246,7 @@ def _rendered(renderer, seeds, run: Run, progress: Progress, on_nan: str, stop) 
         if added:
             # A command's first pass may have been rendered earlier, to learn the image size: its time counts.
             seconds = time.perf_counter() - start + getattr(renderer, "replayed_seconds", 0.0)
-            yield Arrival(one, layers, (seconds,))
+            yield Arrival((seed,), seconds=(seconds,))
 
 
 class StopRequest:

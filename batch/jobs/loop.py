@@ -17,11 +17,13 @@ from .job import RenderJob
 
 @dataclass
 class Arrival:
-    """Passes that arrived: their statistics (a chunk's, or one pass's as its tile sums), the layers of the same
-    passes by name, each pass's seconds (None: the time since the last arrival, shared by its passes), the
-    warnings that came with them and who rendered them."""
+    """Passes that arrived: their seeds; their statistics and the layers of the same passes by name (a chunk's),
+    or None where the source added them to the run itself (a pass rendered here goes straight into the run's
+    statistics: no second copy of its pixels); each pass's seconds (None: the time since the last arrival, shared
+    by its passes); the warnings that came with them and who rendered them."""
 
-    stats: wc.TileStats
+    seeds: tuple[int, ...]
+    stats: wc.TileStats | None = None
     layers: dict[str, wc.TileStats] = field(default_factory=dict)
     seconds: tuple[float, ...] | None = None
     warnings: tuple[str, ...] = ()
@@ -47,6 +49,8 @@ class Run:
         """Add the passes of `arrival`; refused in one line where they are of another configuration or carry
         other layers than the run."""
         chunk = arrival.stats
+        if chunk is None:  # added by its source
+            return
         if self.stats is None:
             self.stats, self.layers = chunk, dict(arrival.layers)
             return
@@ -87,11 +91,11 @@ def render_loop(arrivals: Iterable[Arrival], run: Run, progress, checkpoint_ever
     try:
         for arrival in arrivals:
             run.add(arrival)
-            unsaved += len(arrival.stats.seeds)  # in the run now: saved however the loop ends
+            unsaved += len(arrival.seeds)  # in the run now: saved however the loop ends
             for message in arrival.warnings:
                 progress.warning(f"{arrival.source}: {message}" if arrival.source else message)
             now = time.perf_counter()
-            seeds = arrival.stats.seeds
+            seeds = arrival.seeds
             shared = (now - last) / max(len(seeds), 1)  # a chunk's wall time per pass: the ETA holds for a pool
             for seed, seconds in zip(seeds, arrival.seconds or [shared] * len(seeds), strict=True):
                 progress.pass_done(seed, seconds)

@@ -63,7 +63,7 @@ class ChunkResult:
     def arrival(self) -> Arrival:
         """The chunk's passes and layers for the render loop (`batch.jobs.loop`)."""
         layers = {name: self._run(sums, pixels) for name, (sums, pixels) in self.layers.items()}
-        return Arrival(self.stats(), layers, None, self.warnings, self.worker)
+        return Arrival(self.seeds, self.stats(), layers, None, self.warnings, self.worker)
 
     def _run(self, sums, pixel_sum) -> wc.TileStats:
         info = wc.RunInfo.from_json(self.info)
