@@ -234,6 +234,12 @@ class Option:
         return low_ok and high_ok
 
 
+#: The commands that render a job of their own settings, and the places that take a job's setting.
+_RENDERING = ("render", "check", "matrix", "bisect")
+_JOB = (*_RENDERING, "case")
+#: The sides of an option that the test side of a check may set apart.
+_BOTH = ("reference", "test")
+
 #: The help of matrix's and bisect's --tolerance.
 _MATRIX_TOLERANCE = "also say `equivalent` where every finest tile is within it (default: off)"
 
@@ -250,16 +256,12 @@ OPTIONS = {
             low=1,
             high=MAX_SPP,
             number=True,
-            sides=("reference", "test"),
+            sides=_BOTH,
             draws=True,
-            uses={
+            uses=dict.fromkeys((*_JOB, "addon"), _USE)
+            | {
                 "render": Use(required=True, help=f"samples per pixel per pass (at most {MAX_SPP})"),
-                "check": _USE,
                 "ingest": Use(required=True, help="samples per pixel of each pass"),
-                "matrix": _USE,
-                "bisect": _USE,
-                "case": _USE,
-                "addon": _USE,
             },
         ),
         Option(
@@ -272,9 +274,9 @@ OPTIONS = {
             low=1,
             high=MAX_RESOLUTION,
             number=True,
-            uses={
+            uses=dict.fromkeys((*_JOB, "addon"), _USE)
+            | {
                 "render": Use(32, "tile edge in pixels"),
-                "check": _USE,
                 "ingest": Use(32, "tile edge in pixels"),
                 **dict.fromkeys(
                     ("compare", "selftest"),
@@ -286,8 +288,6 @@ OPTIONS = {
                 ),
                 "matrix": Use(help="tile edge in pixels"),
                 "bisect": Use(help="tile edge in pixels"),
-                "case": _USE,
-                "addon": _USE,
             },
         ),
         Option(
@@ -322,13 +322,8 @@ OPTIONS = {
             low=1,
             high=MAX_RESOLUTION,
             metavar="W H",
-            uses={
-                "render": Use(help=f"override the resolution (at most {MAX_RESOLUTION})"),
-                "check": _USE,
-                "matrix": _USE,
-                "bisect": _USE,
-                "case": _USE,
-            },
+            uses=dict.fromkeys(_JOB, _USE)
+            | {"render": Use(help=f"override the resolution (at most {MAX_RESOLUTION})")},
         ),
         Option(
             "device",
@@ -338,18 +333,10 @@ OPTIONS = {
             "Cycles device",
             default="CPU",
             choices=DEVICES,
-            sides=("reference", "test"),
+            sides=_BOTH,
             draws=True,
-            uses={
-                "render": _USE,
-                "check": _USE,
-                "matrix": _USE,
-                "bisect": _USE,
-                **dict.fromkeys(
-                    ("suite bless", "suite run"), Use(None, "every case on this device instead of its own")
-                ),
-                "addon": _USE,
-            },
+            uses=dict.fromkeys((*_RENDERING, "addon"), _USE)
+            | dict.fromkeys(("suite bless", "suite run"), Use(None, "every case on this device instead of its own")),
         ),
         Option(
             "devices",
@@ -370,15 +357,10 @@ OPTIONS = {
             "Cycles sampling pattern, one of the values the running Blender offers (default: the scene file's own; "
             "a built-in scene's is TABULATED_SOBOL, or the Sobol pattern an older Blender has); recorded",
             metavar="PATTERN",
-            sides=("reference", "test"),
+            sides=_BOTH,
             draws=True,
-            uses={
-                "render": _USE,
-                "check": _USE,
-                "matrix": _USE,
-                "bisect": Use(test_help="the sampling pattern whose effect is bisected, within each build"),
-                "case": _USE,
-            },
+            uses=dict.fromkeys(_JOB, _USE)
+            | {"bisect": Use(test_help="the sampling pattern whose effect is bisected, within each build")},
         ),
         Option(
             "overrides",
@@ -390,14 +372,12 @@ OPTIONS = {
             default=(),
             metavar="RNA.PATH=VALUE",
             many=True,
-            sides=("reference", "test"),
-            uses={
-                "render": _USE,
+            sides=_BOTH,
+            uses=dict.fromkeys(_JOB, _USE)
+            | {
                 "check": Use(help="property override of the test side, repeatable (as render --set)"),
-                "matrix": _USE,
                 "bisect": Use(test_help="the change whose effect is bisected, within each build (repeatable)"),
                 "suite run": Use(help="an override for every case's test side (a planted change)"),
-                "case": _USE,
             },
         ),
         Option(
@@ -422,7 +402,7 @@ OPTIONS = {
             "text",
             "which scene of the .blend (default: its active one)",
             metavar="NAME",
-            uses=dict.fromkeys(("render", "check", "lint", "matrix", "bisect", "case"), _USE),
+            uses=dict.fromkeys((*_JOB, "lint"), _USE),
         ),
         Option(
             "blender",
@@ -432,7 +412,7 @@ OPTIONS = {
             "render with this Blender executable (3.4 or later) instead of the bpy module; its version and build are "
             "recorded",
             metavar="PATH",
-            sides=("reference", "test"),
+            sides=_BOTH,
             uses={
                 "render": _USE,
                 "check": Use(
@@ -452,7 +432,7 @@ OPTIONS = {
             "render with this Python interpreter, whose environment has another release's bpy module (python -m "
             "batch bpy VERSION makes one); its version and build are recorded",
             metavar="PATH",
-            sides=("reference", "test"),
+            sides=_BOTH,
             uses={
                 "render": _USE,
                 "check": Use(
