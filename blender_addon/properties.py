@@ -1,5 +1,6 @@
 """Scene settings: what the reference and test sides are, the budget and tolerance of the check, and how the
-result is shown. The defaults are the command line's (``python -m batch check``).
+result is shown. The defaults and limits of the check's settings are the command line's (``python -m batch check``),
+read from their declaration (`batch.jobs.options`); the soft limits (a slider's range) are the panel's own.
 
 Only the setup lives here (it is saved with the file); the running job and the last result are module state in
 ``state.py`` so nothing transient ends up in the user's file.
@@ -15,6 +16,8 @@ from bpy.props import (
     PointerProperty,
     StringProperty,
 )
+
+from ._siblings import options
 
 MODES = (
     (
@@ -36,6 +39,20 @@ MAP_MODES = (
 )
 
 CHANNELS = (("R", "Red", "Red channel"), ("G", "Green", "Green channel"), ("B", "Blue", "Blue channel"))
+
+
+def _declared(dest: str, percent: bool = False) -> dict:
+    """The default and the limits `batch.jobs.options` declares for the option `dest` at ``addon``, as a
+    property's keywords (`percent`: a fraction shown in percent). A limit the option excludes (alpha's 0 and 1) is
+    left to the property, which can only include its limits."""
+    option = options.OPTIONS[dest]
+    scale = 100.0 if percent else 1
+    found = {"default": option.default_for("addon") * scale if percent else option.default_for("addon")}
+    if option.low is not None and not option.open_low:
+        found["min"] = option.low * scale
+    if option.high is not None and not option.open_high:
+        found["max"] = option.high * scale
+    return found
 
 
 def _refresh_result(_self, context):
@@ -92,16 +109,16 @@ class WELCH_BIAS_PG_settings(bpy.types.PropertyGroup):
         name="Max Passes",
         description="The most independent renders a side (each with its own seed): the run stops as soon as the "
         "data decide, and says what it rules out when it reaches this",
-        default=512,
-        min=2,
+        **_declared("max_passes"),
         soft_max=4096,
     )
     tolerance: FloatProperty(
         name="Tolerance %",
         description="Stop at Equivalent once every tile of the finest size is within this relative difference of "
         "the reference (0: stop only at Biased)",
-        default=1.0,
-        min=0.0,
+        **_declared("tolerance", percent=True),
+        min=0.0,  # off, as the command line's `--tolerance off`
+        max=options.OPTIONS["tolerance"].high * 100.0,  # excluded: refused when a run starts
         soft_max=10.0,
         precision=2,
         step=10,
@@ -119,24 +136,27 @@ class WELCH_BIAS_PG_settings(bpy.types.PropertyGroup):
         default="",
         subtype="FILE_PATH",
     )
-    spp: IntProperty(name="Samples per Pass", description="Cycles samples of each pass", default=1, min=1, soft_max=64)
+    spp: IntProperty(
+        name="Samples per Pass", description="Cycles samples of each pass", **_declared("spp"), soft_max=64
+    )
     tile: IntProperty(
         name="Tile Size",
         description="Edge of the finest square pixel tiles tested (their 2x2, 4x4, ... blocks are tested too)",
-        default=16,
-        min=2,
+        **_declared("tile"),
+        soft_min=2,
         soft_max=256,
     )
     device: EnumProperty(
         name="Device",
         description="Cycles device of the background renders",
         items=(("CPU", "CPU", "Render on the CPU"), ("GPU", "GPU", "Render on the GPU set in the preferences")),
+        **_declared("device"),
     )
     alpha: FloatProperty(
         name="Alpha",
         description="Significance level of the test (probability of a false alarm on an unbiased renderer)",
-        default=0.01,
-        min=1e-6,
+        **_declared("alpha"),
+        min=1e-6,  # the panel's own limits, inside the declared (0, 1)
         max=0.5,
         precision=4,
         step=0.1,

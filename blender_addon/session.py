@@ -15,7 +15,7 @@ from pathlib import Path
 import bpy
 
 from . import checks, preferences, runner
-from ._siblings import ADDON_MODULE, checking, lobes
+from ._siblings import ADDON_MODULE, checking, lobes, options
 from .state import RunFolder, current
 
 
@@ -69,6 +69,13 @@ def alpha_of(settings) -> float:
     return float(f"{settings.alpha:.6g}")
 
 
+def tolerance_of(settings) -> float | None:
+    """The tolerance as typed, as a fraction checked as the command line's --tolerance (None: 0, off)."""
+    if settings.tolerance <= 0:
+        return None
+    return options.OPTIONS["tolerance"].convert("Tolerance", f"{settings.tolerance:g}%")
+
+
 def settings_key(settings, scene) -> tuple:
     """What must be unchanged for a stopped run to be continued."""
     reference, test = checks.sides(settings, scene)
@@ -102,7 +109,7 @@ def check_request(settings, scene, blend: str, folder: Path, resume: bool, blend
         test_python=other if python else None,
         max_passes=settings.max_passes,
         alpha=alpha_of(settings),
-        tolerance=float(f"{settings.tolerance:g}") / 100.0 if settings.tolerance > 0 else None,  # as typed
+        tolerance=tolerance_of(settings),
         unpaired=not settings.paired,
         resume=resume,
     )

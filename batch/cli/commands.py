@@ -29,23 +29,12 @@ import time
 import traceback
 
 from .._siblings import welch_core as wc
-from ..decide.check import DEFAULT_MAX_PASSES, CheckRequest
 from ..errors import BatchError, Exit
 from ..jobs import job as jobs
-from ..jobs.options import DEVICES, OPTIONS, TEST_SIDE, add_options, argparse_type
+from ..jobs.options import TEST_SIDE, add_options
 from ..jobs.protocol import SigtermAsInterrupt, verdict_exit
 
-DEFAULT_ALPHA = 0.01
-
 INPUT_ERRORS = (BatchError, wc.WelchInputError, OSError)
-
-
-tolerance_arg = argparse_type(OPTIONS["tolerance"])
-
-
-def tolerance_or_off(text: str) -> float | None:
-    """argparse type: a percentage as `tolerance_arg`, or ``off`` (None: no `equivalent` verdict)."""
-    return None if text.strip().lower() == "off" else tolerance_arg(text)
 
 
 class Parser(argparse.ArgumentParser):
@@ -119,7 +108,6 @@ def _add_render(sub) -> None:
 
 def _add_check(sub) -> None:
     """``check``: both sides rendered until the data decide."""
-    asked = CheckRequest(out="")  # the check's defaults, declared with what it is asked for
     k = sub.add_parser(
         "check",
         help="render both sides in chunks until the data decide: biased, equivalent, or the budget is spent",
@@ -132,38 +120,16 @@ def _add_check(sub) -> None:
     )
     k.add_argument("blend", nargs="?", metavar="SCENE.blend", help="scene file of the reference side")
     k.add_argument("--scene", help="a built-in scene instead of a file (both sides)")
-    add_options(k, ("blend_scene", "overrides"), helps={"overrides": "property override of the test side, repeatable "
-                                                                     "(as render --set)"})  # fmt: skip
+    add_options(k, "check", ("blend_scene", "overrides"))
     k.add_argument("--test-blend", metavar="OTHER.blend", help="the test side's scene file (default: SCENE.blend)")
     k.add_argument("--test-blend-scene", metavar="NAME", help="which scene of the test side's file")
-    helps = {
-        "blender": "Blender executable of the reference side (default: bpy)",
-        "python": "a Python with another release's bpy module for the reference side (python -m batch bpy VERSION "
-        "makes one)",
-    }
-    add_options(k, ("blender", "python"), helps=helps)
-    k.add_argument("--test-blender", metavar="PATH", help="Blender executable of the test side (default: --blender)")
-    k.add_argument("--test-python", metavar="PATH", help="the test side's Python with a bpy module (default: --python)")
+    add_options(k, "check", ("blender", "python"))
+    add_options(k, "check", ("blender", "python"), side="test")
     k.add_argument("--command", dest="pass_command", metavar="TEMPLATE", help="render the reference's passes with "
                    "this command of another renderer instead of Cycles (as render --command; no scene)")  # fmt: skip
     k.add_argument("--test-command", metavar="TEMPLATE", help="the test side's command (default: --command)")
     k.add_argument("--command-dir", metavar="DIR", help="the folder the commands run in (default: this one)")
-    k.add_argument(
-        "--tolerance",
-        type=tolerance_or_off,
-        default=asked.tolerance,
-        metavar="PERCENT",
-        help="stop at `equivalent` once every tile of the finest tile size is bounded within this relative "
-        "difference (default 1%%; `off`: stop only at `biased`, so that a bias smaller than any tolerance is found "
-        "given the passes)",
-    )
-    k.add_argument(
-        "--equivalence-tile",
-        type=jobs.positive_int,
-        metavar="N",
-        help="claim `equivalent` for N x N tiles (a multiple of --tile) instead of the finest: a weaker claim, "
-        "stated with its tile size everywhere the verdict is shown",
-    )
+    add_options(k, "check", ("tolerance", "equivalence_tile"))
     k.add_argument(
         "--no-futility",
         dest="futility",
@@ -172,23 +138,10 @@ def _add_check(sub) -> None:
         "`inconclusive` from an eighth of the budget when its tile size would need more than 4x the budget and no "
         "tile points to a bias; that stop gives up a bias found only late in the budget)",
     )
-    add_options(k, ("alpha",), defaults={"alpha": asked.alpha})
-    budget = k.add_mutually_exclusive_group()
-    add_options(
-        budget,
-        ("max_passes", "max_seconds"),
-        helps={
-            "max_passes": f"the most passes a side (default {DEFAULT_MAX_PASSES})",
-            "max_seconds": "the most render seconds, both sides together",
-        },
-    )
-    add_options(
-        k,
-        ("spp", "tile", "resolution", "device", "sampling_pattern", "lobes"),
-        defaults={"spp": asked.spp, "tile": asked.tile, "device": asked.device, "lobes": asked.lobes},
-        helps={"lobes": "also render light components and light groups (as render --lobes); the report tests each"},
-    )
-    add_options(k, TEST_SIDE, test=True)
+    add_options(k, "check", ("alpha",))
+    add_options(k.add_mutually_exclusive_group(), "check", ("max_passes", "max_seconds"))
+    add_options(k, "check", ("spp", "tile", "resolution", "device", "sampling_pattern", "lobes"))
+    add_options(k, "check", TEST_SIDE, side="test")
     k.add_argument("--unpaired", action="store_true", help="disjoint seeds even on one build (an A/A check)")
     add_cluster_arguments(k)
     k.add_argument("--resume", action="store_true", help="continue a stopped check in --out")
@@ -204,8 +157,7 @@ def _add_ingest(sub) -> None:
         description="One EXR file per independent pass (its own seed), all the same size.",
     )
     i.add_argument("passes", nargs="+", metavar="PASS.exr")
-    i.add_argument("--spp", type=jobs.positive_int, required=True, help="samples per pixel of each pass")
-    i.add_argument("--tile", type=jobs.positive_int, default=32, help="tile edge in pixels (default 32)")
+    add_options(i, "ingest", ("spp", "tile"))
     i.add_argument(
         "--seeds",
         type=jobs.seeds_arg,
@@ -237,12 +189,7 @@ def _add_compare(sub) -> None:
             c.add_argument("test", metavar="TEST", help="statistics file of the run under test")
         else:
             c.add_argument("run", metavar="RUN", help="a statistics file with at least 4 passes")
-        c.add_argument(
-            "--alpha",
-            type=argparse_type(OPTIONS["alpha"]),
-            default=DEFAULT_ALPHA,
-            help="false-positive rate of a biased verdict (default 0.01)",
-        )
+        add_options(c, name, ("alpha",))
         c.add_argument(
             "--pvalue-method",
             default="exact",
@@ -250,26 +197,7 @@ def _add_compare(sub) -> None:
             help="exact Student t (default); gauss/as_erf: the paper's approximations where nu >= 20",
         )
         c.add_argument("--out", required=True, metavar="REPORT_DIR", help="folder for the report (created if missing)")
-        c.add_argument(
-            "--tolerance",
-            type=tolerance_arg,
-            metavar="PERCENT",
-            help="e.g. 0.5%%: the verdict is `equivalent` when every tile of the finest tile size is bounded within "
-            "it (else `inconclusive`, saying what is bounded and what is not)",
-        )
-        c.add_argument(
-            "--equivalence-tile",
-            type=jobs.positive_int,
-            metavar="N",
-            help="with --tolerance: claim `equivalent` for N x N tiles (one of the tested sizes) instead of the finest",
-        )
-        c.add_argument(
-            "--tile",
-            type=jobs.positive_int,
-            metavar="N",
-            help="test only this tile size (a multiple of the stored one); default: the stored size and every "
-            "multiple 2x, 4x, ... that fits the image",
-        )
+        add_options(c, name, ("tolerance", "equivalence_tile", "tile"))
         c.add_argument(
             "--full-maps",
             action="store_true",
@@ -304,7 +232,7 @@ def _add_merge(sub) -> None:
 
     lint = sub.add_parser("lint", help="list settings that make Cycles biased or passes dependent")
     lint.add_argument("blend", metavar="SCENE.blend")
-    lint.add_argument("--blend-scene", metavar="NAME")
+    add_options(lint, "lint", ("blend_scene",))
 
 
 def _add_suite(sub) -> None:
@@ -329,9 +257,7 @@ def _add_suite(sub) -> None:
         a = suite_sub.add_parser(action, help=text, description=text)
         a.add_argument("suite_file", metavar="SUITE", help="a suite file (.toml), or `builtin`")
         a.add_argument("--refs", metavar="DIR", help="the references' folder (default for `builtin`: shipped ones)")
-        a.add_argument("--blender", metavar="PATH", help="render with this Blender executable instead of bpy")
-        a.add_argument("--python", metavar="PATH", help="render with this Python's bpy module (another release)")
-        a.add_argument("--device", choices=DEVICES, help="every case on this device instead of its own")
+        add_options(a, f"suite {action}", ("blender", "python", "device"))
         a.add_argument("--filter", nargs="+", metavar="PATTERN", help="only the cases whose names match")
         a.add_argument("--json-progress", action="store_true", help="one JSON line per event on stdout")
         if action == "bless":
@@ -339,14 +265,7 @@ def _add_suite(sub) -> None:
             a.add_argument("--missing", action="store_true", help="render only the cases that have no reference")
         else:
             a.add_argument("--out", required=True, metavar="DIR", help="folder for the results and the dashboard")
-            a.add_argument(
-                "--set",
-                dest="overrides",
-                action="append",
-                default=[],
-                metavar="RNA.PATH=VALUE",
-                help="an override for every case's test side (a planted change)",
-            )
+            add_options(a, "suite run", ("overrides",))
             a.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")
             add_cluster_arguments(a)
             a.add_argument(
@@ -380,27 +299,13 @@ def _add_matrix(sub) -> None:
         m.add_argument("blend", nargs="?", metavar="SCENE.blend", help="the scene file")
         m.add_argument("--scene", help="a built-in scene instead of a file")
         m.add_argument("--builds", nargs="+", required=True, metavar="BUILD", help="the builds, oldest first")
-        add_options(
-            m, ("blend_scene", "resolution", "device", "sampling_pattern", "overrides"), defaults={"device": "CPU"}
-        )
-        m.add_argument("--spp", type=jobs.positive_int, default=1, help="samples per pixel per pass (default 1)")
-        m.add_argument("--tile", type=jobs.positive_int, default=16, help="tile edge in pixels (default 16)")
-        m.add_argument("--passes", type=jobs.positive_int, default=32, help="passes per build (default 32)")
-        add_options(m, ("alpha",), defaults={"alpha": DEFAULT_ALPHA})
-        m.add_argument("--tolerance", type=tolerance_or_off, default=None, metavar="PERCENT",
-                       help="also say `equivalent` where every finest tile is within it (default: off)")  # fmt: skip
+        add_options(m, name, ("blend_scene", "resolution", "device", "sampling_pattern", "overrides", "spp", "tile",
+                              "passes", "alpha", "tolerance"))  # fmt: skip
         if name == "matrix":
             m.add_argument("--baseline", metavar="BUILD", help="the build every other is compared with (default: "
                            "the first)")  # fmt: skip
         else:
-            m.add_argument("--test-set", dest="test_overrides", action="append", default=[], metavar="RNA.PATH=VALUE",
-                           help="the change whose effect is bisected, within each build (repeatable)")  # fmt: skip
-            add_options(
-                m,
-                ("sampling_pattern",),
-                test=True,
-                helps={"sampling_pattern": "the sampling pattern whose effect is bisected, within each build"},
-            )
+            add_options(m, "bisect", ("overrides", "sampling_pattern"), side="test")
         m.add_argument("--out", required=True, metavar="DIR", help="folder for the renders, reports and index.html")
 
 
@@ -423,7 +328,7 @@ def _add_bpy(sub) -> None:
 
     d = sub.add_parser("demo", help="the built-in corner scene against a biased variant (walls 0.21 instead of 0.2)")
     d.add_argument("--out", default=os.path.join("out", "demo"), metavar="REPORT_DIR")
-    d.add_argument("--passes", type=jobs.positive_int, default=None, help="passes per side")
+    add_options(d, "demo", ("passes",))
     d.add_argument("--resolution", type=jobs.positive_int, default=None, help="square image size in pixels")
 
 

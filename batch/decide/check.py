@@ -26,7 +26,7 @@ from ..errors import BatchError
 from ..jobs import protocol
 from ..jobs.distributed import Cluster, ClusterSide, cluster
 from ..jobs.job import RenderJob
-from ..jobs.options import TEST_SIDE
+from ..jobs.options import TEST_SIDE, default
 from ..jobs.seeds import MAX_PASSES, parse_seeds
 from ..jobs.side import Side
 from ..present.progress import Progress
@@ -42,7 +42,7 @@ DECIDED = ("biased", "equivalent")
 UNPAIRED_SEEDS = MAX_PASSES  # --max-passes is at most this
 
 #: Passes a side when neither --max-passes nor --max-seconds is given.
-DEFAULT_MAX_PASSES = 512
+DEFAULT_MAX_PASSES = default("max_passes", "check")
 
 
 @dataclass(frozen=True)
@@ -56,8 +56,8 @@ class CheckJob:
     out: str
     max_passes: int | None = DEFAULT_MAX_PASSES
     max_seconds: float | None = None
-    alpha: float = 0.01
-    tolerance: float | None = 0.01
+    alpha: float = default("alpha", "check")
+    tolerance: float | None = default("tolerance", "check")
     equivalence_tile: int | None = None  # claim `equivalent` at this tile size (default: the finest)
     futility: bool = True  # stop `inconclusive` once `equivalent` is out of the budget's reach (welch_core.decision)
     resume: bool = False
@@ -489,7 +489,8 @@ def _absolute(path: str | None) -> str | None:
 @dataclass(frozen=True)
 class CheckRequest:
     """What a check is asked for, as the command line (``check``'s arguments: `from_args`) and the Blender add-on
-    give it, values already checked; `check_job` makes the check of it. The defaults are the command line's."""
+    give it, values already checked; `check_job` makes the check of it. The defaults are the command line's
+    (`batch.jobs.options`)."""
 
     out: str
     blend: str | None = None
@@ -498,12 +499,12 @@ class CheckRequest:
     test_blend: str | None = None
     test_blend_scene: str | None = None
     overrides: tuple[str, ...] = ()
-    spp: int = 1
-    tile: int = 16
+    spp: int = default("spp", "check")
+    tile: int = default("tile", "check")
     resolution: tuple[int, int] | None = None
-    device: str = "CPU"
+    device: str = default("device", "check")
     sampling_pattern: str | None = None
-    lobes: tuple[str, ...] = ()
+    lobes: tuple[str, ...] = default("lobes", "check")
     test_spp: int | None = None
     test_device: str | None = None
     test_sampling_pattern: str | None = None
@@ -516,8 +517,8 @@ class CheckRequest:
     command_dir: str | None = None
     max_passes: int | None = None  # None: DEFAULT_MAX_PASSES, unless max_seconds is given
     max_seconds: float | None = None
-    alpha: float = 0.01
-    tolerance: float | None = 0.01
+    alpha: float = default("alpha", "check")
+    tolerance: float | None = default("tolerance", "check")
     equivalence_tile: int | None = None
     futility: bool = True
     unpaired: bool = False

@@ -75,13 +75,16 @@ BUILTIN_REFS = Path(__file__).with_name("suites") / "builtin-refs"
 EXPECTATIONS = ("same", "biased")
 
 #: The bias a passing case must be able to find, where neither the case nor the suite says: `check`'s default.
-DEFAULT_TOLERANCE = 0.01
+DEFAULT_TOLERANCE = options.default("tolerance", "suite")
+DEFAULT_ALPHA = options.default("alpha", "suite")
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
-_CASE_KEYS = {
-    "name", "scene", "blend", "blend_scene", "set", "resolution", "spp", "tile", "passes", "seconds", "devices",
-    "tolerance", "expect", "sampling_pattern", "test_sampling_pattern", "test_spp", "why", "planted", "command",
-    "equivalence_tile",
-}  # fmt: skip
+#: A case's options (`batch.jobs.options`: their keys, checks and defaults) and the fields of `Case` they fill.
+_FIELDS = {"max_passes": "passes", "max_seconds": "seconds"}
+_CASE_KEYS = {"name", "scene", "blend", "expect", "why", "planted", "command", *(o.key for o in options.CASE_OPTIONS)}
+
+
+def _default(dest: str):
+    return options.default(dest, "case")
 
 
 @dataclass(frozen=True)
@@ -91,18 +94,18 @@ class Case:
     name: str
     scene: str | None = None
     blend: str | None = None
-    blend_scene: str | None = None
-    overrides: tuple[str, ...] = ()
-    resolution: tuple[int, int] | None = None
-    spp: int = 1
-    tile: int = 16
-    passes: int = 64
-    seconds: float | None = None
-    devices: tuple[str, ...] = ("CPU",)
-    tolerance: float | None = None
-    equivalence_tile: int | None = None  # the tile size `equivalent` claims (default: the case's tile)
+    blend_scene: str | None = _default("blend_scene")
+    overrides: tuple[str, ...] = _default("overrides")
+    resolution: tuple[int, int] | None = _default("resolution")
+    spp: int = _default("spp")
+    tile: int = _default("tile")
+    passes: int = _default("max_passes")
+    seconds: float | None = _default("max_seconds")
+    devices: tuple[str, ...] = _default("devices")
+    tolerance: float | None = _default("tolerance")  # None: the suite's
+    equivalence_tile: int | None = _default("equivalence_tile")  # the tile size `equivalent` claims (default: tile)
     expect: str = "same"
-    sampling_pattern: str | None = None
+    sampling_pattern: str | None = _default("sampling_pattern")
     test_sampling_pattern: str | None = None  # the test side's, where it differs from the reference's on purpose
     test_spp: int | None = None  # the same for the samples of a pass
     why: str = ""
@@ -185,14 +188,14 @@ def load_suite(name: str) -> Suite:
         header, _ = {}, problems.append("[suite] must be a table")
     if set(header) - {"name", "alpha", "tolerance"}:
         problems.append(f"unknown key {sorted(set(header) - {'name', 'alpha', 'tolerance'})[0]!r} in [suite]")
-    alpha, tolerance = 0.01, DEFAULT_TOLERANCE
+    alpha, tolerance = DEFAULT_ALPHA, DEFAULT_TOLERANCE
     try:
-        alpha = options.probability("[suite] alpha", header.get("alpha", 0.01))
+        alpha = options.OPTIONS["alpha"].convert("[suite] alpha", header.get("alpha", DEFAULT_ALPHA))
     except BatchError as exc:
         problems.append(str(exc))
     try:
         if "tolerance" in header:
-            tolerance = options.percentage("[suite] tolerance", header["tolerance"])
+            tolerance = options.OPTIONS["tolerance"].convert("[suite] tolerance", header["tolerance"])
     except BatchError as exc:
         problems.append(str(exc))
     suite_name = header.get("name", path.stem)
@@ -261,9 +264,9 @@ def _case(entry: dict, label: str, folder: Path, problems: list[str]) -> Case | 
         if key in entry and not isinstance(entry[key], str):
             problems.append(f"{label}: {key!r} must be text, got {entry[key]!r}")
         texts[key] = entry.get(key) if isinstance(entry.get(key), str) else None
-    claim = entry.get("equivalence_tile")
-    tile = values.get("tile", 16)
-    if claim is not None and (isinstance(claim, bool) or not isinstance(claim, int) or claim < tile or claim % tile):
+    claim = values.get("equivalence_tile")
+    tile = values.get("tile", _default("tile"))
+    if claim is not None and (claim < tile or claim % tile):
         problems.append(f"{label}: 'equivalence_tile' must be a multiple of the case's tile {tile}, got {claim!r}")
     elif claim is not None and values.get("tolerance") is None:
         problems.append(f"{label}: 'equivalence_tile' needs a 'tolerance'")
@@ -273,24 +276,12 @@ def _case(entry: dict, label: str, folder: Path, problems: list[str]) -> Case | 
         name=name,
         scene=scene,
         blend=blend,
-        blend_scene=values.get("blend_scene"),
-        overrides=values.get("overrides", ()),
-        resolution=values.get("resolution"),
-        spp=values.get("spp", 1),
-        tile=values.get("tile", 16),
-        passes=values.get("max_passes", 64),
-        seconds=values.get("max_seconds"),
-        devices=values.get("devices", ("CPU",)),
-        tolerance=values.get("tolerance"),
-        equivalence_tile=claim,
         expect=expect,
-        sampling_pattern=values.get("sampling_pattern"),
-        test_sampling_pattern=values.get("test_sampling_pattern"),
-        test_spp=values.get("test_spp"),
         why=texts["why"] or "",
         planted=texts["planted"],
         command=command,
         folder=str(folder.resolve()),
+        **{_FIELDS.get(dest, dest): value for dest, value in values.items()},
     )
     for device in case.devices:  # what a render job refuses (a command with a Cycles setting, say), named now
         try:

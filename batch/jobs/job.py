@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from ..errors import BatchError
 from . import options
 from .lobes import LOBES, parse_lobes
-from .options import DEVICES, MAX_RESOLUTION, MAX_SPP, add_options
+from .options import DEVICES, add_options, default
 from .seeds import MAX_PASSES, format_seeds, parse_seeds
 
 #: The built-in scenes (`batch.blender.scenes.SCENES` builds them; a test holds the two together), named here so
@@ -61,13 +61,13 @@ class RenderJob:
 
     out: str
     seeds: tuple[int, ...]
-    spp: int = 1
+    spp: int = default("spp", "render")
     blend: str | None = None
     scene: str | None = None
     blend_scene: str | None = None
-    tile: int = 32
+    tile: int = default("tile", "render")
     resolution: tuple[int, int] | None = None
-    device: str = "CPU"
+    device: str = default("device", "render")
     sampling_pattern: str | None = None
     overrides: tuple[str, ...] = ()
     resume: bool = False
@@ -96,14 +96,14 @@ class RenderJob:
             raise BatchError(f"give a .blend file or a built-in scene, not both ({self.blend}, {self.scene!r})")
         if self.scene is not None and self.scene not in BUILTIN_SCENES:
             raise BatchError(f"unknown built-in scene {self.scene!r}; choose from {', '.join(BUILTIN_SCENES)}")
-        _check_range("--spp", self.spp, 1, MAX_SPP)
-        _check_range("--tile", self.tile, 1, MAX_RESOLUTION)
+        _check_declared("spp", self.spp)
+        _check_declared("tile", self.tile)
         _check_range("--checkpoint-every", self.checkpoint_every, 1, MAX_PASSES)
         if self.resolution is not None:
             if len(self.resolution) != 2:
                 raise BatchError(f"--resolution takes a width and a height, got {self.resolution}")
             for side in self.resolution:
-                _check_range("--resolution", side, 1, MAX_RESOLUTION)
+                _check_declared("resolution", side)
             if self.tile > min(self.resolution):
                 width, height = self.resolution
                 raise BatchError(f"--tile {self.tile} is larger than the image {width}x{height}")
@@ -192,6 +192,12 @@ class RenderJob:
         return [*argv, "--out", self.out]
 
 
+def _check_declared(dest: str, value) -> None:
+    """A number of a job made in code within its option's declared limits."""
+    option = options.OPTIONS[dest]
+    _check_range(option.flag, value, option.low, option.high)
+
+
 def _check_range(option: str, value, low: int, high: int) -> None:
     if isinstance(value, str):  # a job made in code: an int, or refused
         raise BatchError(f"{option} must be an integer in {low}..{high}, got {value!r}")
@@ -242,19 +248,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("blend", nargs="?", metavar="SCENE.blend", help="scene file (default: the file Blender opened)")
     parser.add_argument("--scene", help="a built-in scene instead of a file (see --help of `demo` for the list)")
     parser.add_argument("--seeds", type=seeds_arg, required=True, help="A:B (half-open range) or S1,S2,...")
-    add_options(parser, ("blend_scene",))
-    parser.add_argument(
-        "--spp",
-        type=options.argparse_type(options.OPTIONS["spp"]),
-        required=True,
-        help=f"samples per pixel per pass (at most {MAX_SPP})",
-    )
-    add_options(
-        parser,
-        ("tile", "resolution", "device", "sampling_pattern", "overrides", "lobes", "blender", "python"),
-        defaults={"tile": 32, "device": "CPU", "lobes": ()},
-        helps={"tile": "tile edge in pixels", "resolution": f"override the resolution (at most {MAX_RESOLUTION})"},
-    )
+    add_options(parser, "render", ("blend_scene", "spp", "tile", "resolution", "device", "sampling_pattern",
+                                   "overrides", "lobes", "blender", "python"))  # fmt: skip
     parser.add_argument(
         "--command",
         dest="pass_command",  # "command" is the subcommand's

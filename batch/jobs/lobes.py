@@ -13,9 +13,12 @@ here imports bpy; `batch.render` enables the passes.
 
 from __future__ import annotations
 
-import numpy as np
+from typing import TYPE_CHECKING
 
 from ..errors import BatchError
+
+if TYPE_CHECKING:  # numpy is imported where the layers are made: `batch.jobs.options` imports this module light
+    import numpy as np
 
 #: The components of Combined, in the order the report lists them.
 COMPONENTS = ("diffuse", "glossy", "transmission", "volume", "emission", "environment")
@@ -68,6 +71,8 @@ def layers_from_channels(channels: dict[str, np.ndarray], lobes) -> dict[str, np
         raise BatchError(f"the pass has no Combined layer (its channels: {', '.join(sorted(channels)[:12])})")
     prefix = combined[0].removesuffix("Combined.R")
     names = {key.removeprefix(prefix).rpartition(".")[0] for key in channels if key.startswith(prefix)}
+
+    import numpy as np
 
     def rgb(*alternatives: str) -> np.ndarray:
         for name in alternatives:

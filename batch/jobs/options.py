@@ -1,18 +1,22 @@
-"""The options of a job, declared once: the command line (``render``, ``check``, ``suite``), a suite file's case
-keys and the Blender add-on read the same names, limits and help here, and one function checks each value
-however it arrives (a string on the command line, a TOML value, a panel property), with the same one-line error
-naming the option as the user wrote it (``--spp`` on the command line, ``'spp'`` in a suite file).
+"""The options of a job and of a check, declared once: each `Option` says its name on the command line and in a
+suite file, its type and limits, its default, its help, which commands take it (with the default and help a
+command gives it where they differ) and whether the test side of a check takes its own value. The command
+line's parsers (`add_options`), a suite file's case keys and defaults (`from_mapping`, `default`) and the Blender
+add-on's properties read them here, and one function checks each value however it arrives (a string on the
+command line, a TOML value, a panel property), with the same one-line error naming the option as the user wrote
+it (``--spp`` on the command line, ``'spp'`` in a suite file).
 
-`add_options` declares options on an argparse parser; `from_mapping` reads them from a suite case, collecting
-every problem instead of stopping at the first.
+The places an option is taken: a command's name as ``python -m batch`` spells it (``render``, ``check``, ``suite
+run``...), ``case`` (a suite file's case, under the option's `Option.key`) and ``addon`` (the Blender add-on's
+panel, under the option's `Option.dest`).
 """
 
 from __future__ import annotations
 
 import argparse
 import math
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from ..errors import BatchError
@@ -24,6 +28,8 @@ MAX_RESOLUTION = 65536
 MAX_SPP = 2**24
 #: Seconds a budget may be: a week of rendering is far beyond any check (and `inf` is no budget).
 MAX_SECONDS = 7 * 24 * 3600.0
+#: The largest tolerance, as a fraction (1000 %).
+MAX_TOLERANCE = 10.0
 
 #: The devices a job may ask for: the CPU, the first GPU backend that has a device, or one backend.
 GPU_BACKENDS = ("OPTIX", "CUDA", "HIP", "METAL", "ONEAPI")
@@ -55,16 +61,16 @@ def _number(value) -> float | None:
     return None if isinstance(value, bool) or not isinstance(value, int | float) else float(value)
 
 
-def seconds(name: str, value) -> float:
-    """A positive, finite number of seconds (at most `MAX_SECONDS`), from a number or its text."""
+def seconds(name: str, value, high: float = MAX_SECONDS) -> float:
+    """A positive, finite number of seconds (at most `high`), from a number or its text."""
     number = _number(value)
-    if number is None or not 0 < number <= MAX_SECONDS:
-        raise BatchError(f"{name} must be a number of seconds in (0, {MAX_SECONDS:.0f}], got {_show(value)}")
+    if number is None or not 0 < number <= high:
+        raise BatchError(f"{name} must be a number of seconds in (0, {high:.0f}], got {_show(value)}")
     return number
 
 
-def percentage(name: str, value) -> float:
-    """A relative difference written as a percentage, ``0.5%``, as a fraction (0.005), in (0 %, 1000 %)."""
+def percentage(name: str, value, high: float = MAX_TOLERANCE) -> float:
+    """A relative difference written as a percentage, ``0.5%``, as a fraction (0.005), in (0 %, `high`)."""
     text = value.strip() if isinstance(value, str) else None
     number = math.nan
     if text is not None and text.endswith("%"):
@@ -72,7 +78,7 @@ def percentage(name: str, value) -> float:
             number = float(text[:-1]) / 100.0
         except ValueError:
             pass
-    if not 0.0 < number < 10.0:
+    if not 0.0 < number < high:
         raise BatchError(f"{name} must be a percentage such as 0.5%, got {_show(value)}")
     return number
 
@@ -103,33 +109,11 @@ def _show(value) -> str:
     return shown if len(shown) <= 60 else shown[:57] + "..."
 
 
-# -- the declaration ---------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Option:
-    """One option: its destination (a `RenderJob` field or a run's setting), its command-line flag, its key in
-    a suite case (None: not there), how a value is checked, and its help."""
-
-    dest: str
-    flag: str
-    key: str | None
-    convert: Callable[[str, Any], Any]  # (the name to show, the value) -> the value, or BatchError
-    help: str
-    metavar: str | None = None
-    many: bool = False  # repeatable on the command line (append), a list in a suite case
-    number: bool = False  # a number (text only on the command line: a suite file's "4" is a mistake)
-
-
-def _side(name: str, value) -> int:
-    return integer(name, value, 1, MAX_RESOLUTION)
-
-
-def _resolution(name: str, value):
+def _resolution(name: str, value, low: int, high: int):
     items = value.split() if isinstance(value, str) else value
     if not isinstance(items, list | tuple) or len(items) != 2:
         raise BatchError(f"{name} must be a width and a height in pixels, got {_show(value)}")
-    return tuple(_side(name, v) for v in items)
+    return tuple(integer(name, v, low, high) for v in items)
 
 
 def _lobes(name: str, value) -> tuple[str, ...]:
@@ -150,166 +134,495 @@ def _override(name: str, value) -> str:
     return value
 
 
+#: How each kind of option checks a value: (the option, the name to show, the value) -> the value, or BatchError.
+KINDS: dict[str, Callable[[Option, str, Any], Any]] = {
+    "integer": lambda o, n, v: integer(n, v, o.low, o.high),
+    "resolution": lambda o, n, v: _resolution(n, v, o.low, o.high),
+    "seconds": lambda o, n, v: seconds(n, v, o.high),
+    "percentage": lambda o, n, v: percentage(n, v, o.high),
+    "probability": lambda o, n, v: probability(n, v),
+    "choice": lambda o, n, v: choice(n, v, o.choices),
+    "text": lambda o, n, v: text(n, v),
+    "lobes": lambda o, n, v: _lobes(n, v),
+    "override": lambda o, n, v: _override(n, v),
+}
+#: The kinds whose limits exclude the bounds themselves: (low, high) open or half-open, as their errors say.
+OPEN_LOW = ("seconds", "percentage", "probability")
+OPEN_HIGH = ("percentage", "probability")
+
+
+# -- the declaration ---------------------------------------------------------------------------------------------
+
+#: A `Use` that keeps the option's own default.
+SAME: Any = "<the option's default>"
+
+
+@dataclass(frozen=True)
+class Use:
+    """How one place takes an option, where it differs from the option's declaration: its default (`SAME`: the
+    option's), its help (None: the option's; ``{default}`` in it is replaced by the default, else a default that
+    is not None is added as ``(default X)``), `required` (no default), `deferred` (the parser leaves None and the
+    command applies the default itself: --max-passes only without --max-seconds) and the help of the test side's
+    flag where it has one of its own (`test_help`)."""
+
+    default: Any = SAME
+    help: str | None = None
+    required: bool = False
+    deferred: bool = False
+    test_help: str | None = None
+
+
+_USE = Use()
+
+
+@dataclass(frozen=True)
+class Option:
+    """One option: its destination (a `RenderJob` or check field, an add-on property), its command-line flag, its
+    key in a suite case (None: not there), its kind (`KINDS`: how a value is checked) with its limits (`low` and
+    `high` for numbers, `choices`), its default, its help, the places that take it (`uses`: place -> `Use`) and
+    the sides of a check that take their own value (``test``: ``--test-blender``; for an option that only `draws`
+    the passes also a suite case's ``test_spp``)."""
+
+    dest: str
+    flag: str
+    key: str | None
+    kind: str
+    help: str
+    default: Any = None
+    low: float | None = None
+    high: float | None = None
+    choices: tuple[str, ...] = ()
+    metavar: str | None = None
+    many: bool = False  # repeatable on the command line (append), a list in a suite case
+    number: bool = False  # a number (text only on the command line: a suite file's "4" is a mistake)
+    off: bool = False  # ``off`` on the command line is None (no such limit)
+    uses: Mapping[str, Use] = field(default_factory=dict)
+    sides: tuple[str, ...] = ("reference",)
+    draws: bool = False  # changes only how the passes are drawn: both sides converge to the same image
+
+    def convert(self, name: str, value):
+        """`value` checked (the value itself, or a tuple for a resolution and lobes), or BatchError naming `name`."""
+        return KINDS[self.kind](self, name, value)
+
+    def use(self, place: str) -> Use:
+        try:
+            return self.uses[place]
+        except KeyError:
+            raise KeyError(f"{self.flag} is not declared for {place}") from None
+
+    def default_for(self, place: str):
+        """The default `place` gives the option (the option's own unless the place says otherwise)."""
+        use = self.use(place)
+        return self.default if use.default is SAME else use.default
+
+    def show(self, value) -> str:
+        """A value as a user writes it (a tolerance of 0.01 as ``1%``)."""
+        return f"{value * 100:g}%" if self.kind == "percentage" else str(value)
+
+    @property
+    def open_low(self) -> bool:
+        return self.kind in OPEN_LOW
+
+    @property
+    def open_high(self) -> bool:
+        return self.kind in OPEN_HIGH
+
+    def admits(self, number: float) -> bool:
+        """Whether a number is within the limits (for a test of what another place allows)."""
+        low_ok = self.low is None or (self.low < number if self.open_low else self.low <= number)
+        high_ok = self.high is None or (number < self.high if self.open_high else number <= self.high)
+        return low_ok and high_ok
+
+
+#: The commands that render a job of their own settings, and the places that take a job's setting.
+_RENDERING = ("render", "check", "matrix", "bisect")
+_JOB = (*_RENDERING, "case")
+#: The sides of an option that the test side of a check may set apart.
+_BOTH = ("reference", "test")
+
+#: The help of matrix's and bisect's --tolerance.
+_MATRIX_TOLERANCE = "also say `equivalent` where every finest tile is within it (default: off)"
+
 OPTIONS = {
     option.dest: option
     for option in (
         Option(
-            "spp", "--spp", "spp", lambda n, v: integer(n, v, 1, MAX_SPP), "samples per pixel per pass", number=True
+            "spp",
+            "--spp",
+            "spp",
+            "integer",
+            "samples per pixel per pass",
+            default=1,
+            low=1,
+            high=MAX_SPP,
+            number=True,
+            sides=_BOTH,
+            draws=True,
+            uses=dict.fromkeys((*_JOB, "addon"), _USE)
+            | {
+                "render": Use(required=True, help=f"samples per pixel per pass (at most {MAX_SPP})"),
+                "ingest": Use(required=True, help="samples per pixel of each pass"),
+            },
         ),
         Option(
             "tile",
             "--tile",
             "tile",
-            lambda n, v: integer(n, v, 1, MAX_RESOLUTION),
+            "integer",
             "finest tile edge in pixels",
+            default=16,
+            low=1,
+            high=MAX_RESOLUTION,
             number=True,
-        ),  # fmt: skip
+            uses=dict.fromkeys((*_JOB, "addon"), _USE)
+            | {
+                "render": Use(32, "tile edge in pixels"),
+                "ingest": Use(32, "tile edge in pixels"),
+                **dict.fromkeys(
+                    ("compare", "selftest"),
+                    Use(
+                        None,
+                        "test only this tile size (a multiple of the stored one); default: the stored size and "
+                        "every multiple 2x, 4x, ... that fits the image",
+                    ),
+                ),
+                "matrix": Use(help="tile edge in pixels"),
+                "bisect": Use(help="tile edge in pixels"),
+            },
+        ),
+        Option(
+            "equivalence_tile",
+            "--equivalence-tile",
+            "equivalence_tile",
+            "integer",
+            "claim `equivalent` for N x N tiles (a multiple of --tile) instead of the finest: a weaker claim, "
+            "stated with its tile size everywhere the verdict is shown",
+            low=1,
+            high=MAX_RESOLUTION,
+            metavar="N",
+            number=True,
+            uses={
+                "check": _USE,
+                **dict.fromkeys(
+                    ("compare", "selftest"),
+                    Use(
+                        help="with --tolerance: claim `equivalent` for N x N tiles (one of the tested sizes) instead "
+                        "of the finest"
+                    ),
+                ),
+                "case": _USE,
+            },
+        ),
         Option(
             "resolution",
             "--resolution",
             "resolution",
-            _resolution,
+            "resolution",
             "override the resolution (width height)",
+            low=1,
+            high=MAX_RESOLUTION,
             metavar="W H",
-        ),  # fmt: skip
-        Option("device", "--device", None, lambda n, v: choice(n, v, DEVICES), "Cycles device"),
-        Option("devices", "--device", "devices", lambda n, v: choice(n, v, DEVICES), "Cycles devices", many=True),
+            uses=dict.fromkeys(_JOB, _USE)
+            | {"render": Use(help=f"override the resolution (at most {MAX_RESOLUTION})")},
+        ),
+        Option(
+            "device",
+            "--device",
+            None,
+            "choice",
+            "Cycles device",
+            default="CPU",
+            choices=DEVICES,
+            sides=_BOTH,
+            draws=True,
+            uses=dict.fromkeys((*_RENDERING, "addon"), _USE)
+            | dict.fromkeys(("suite bless", "suite run"), Use(None, "every case on this device instead of its own")),
+        ),
+        Option(
+            "devices",
+            "--device",
+            "devices",
+            "choice",
+            "Cycles devices",
+            default=("CPU",),
+            choices=DEVICES,
+            many=True,
+            uses={"case": _USE},
+        ),
         Option(
             "sampling_pattern",
             "--sampling-pattern",
             "sampling_pattern",
-            text,
+            "text",
             "Cycles sampling pattern, one of the values the running Blender offers (default: the scene file's own; "
             "a built-in scene's is TABULATED_SOBOL, or the Sobol pattern an older Blender has); recorded",
             metavar="PATTERN",
+            sides=_BOTH,
+            draws=True,
+            uses=dict.fromkeys(_JOB, _USE)
+            | {"bisect": Use(test_help="the sampling pattern whose effect is bisected, within each build")},
         ),
         Option(
             "overrides",
             "--set",
             "set",
-            _override,
+            "override",
             'property override, repeatable: cycles.sample_clamp_indirect=0, lights["Light"].energy=100, '
             'materials["Walls"].node_tree.nodes["Diffuse BSDF"].inputs["Color"].default_value=0.21,0.21,0.21,1',
+            default=(),
             metavar="RNA.PATH=VALUE",
             many=True,
+            sides=_BOTH,
+            uses=dict.fromkeys(_JOB, _USE)
+            | {
+                "check": Use(help="property override of the test side, repeatable (as render --set)"),
+                "bisect": Use(test_help="the change whose effect is bisected, within each build (repeatable)"),
+                "suite run": Use(help="an override for every case's test side (a planted change)"),
+            },
         ),
         Option(
             "lobes",
             "--lobes",
             None,
-            _lobes,
+            "lobes",
             f"also accumulate light components and light groups as layers: 'all' or some of {','.join(LOBES)}",
+            default=(),
             metavar="LIST",
-        ),  # fmt: skip
+            uses={
+                "render": _USE,
+                "check": Use(
+                    help="also render light components and light groups (as render --lobes); the report tests each"
+                ),
+            },
+        ),
         Option(
             "blend_scene",
             "--blend-scene",
             "blend_scene",
-            text,
+            "text",
             "which scene of the .blend (default: its active one)",
             metavar="NAME",
-        ),  # fmt: skip
+            uses=dict.fromkeys((*_JOB, "lint"), _USE),
+        ),
         Option(
             "blender",
             "--blender",
             None,
-            text,
+            "text",
             "render with this Blender executable (3.4 or later) instead of the bpy module; its version and build are "
             "recorded",
             metavar="PATH",
-        ),  # fmt: skip
+            sides=_BOTH,
+            uses={
+                "render": _USE,
+                "check": Use(
+                    help="Blender executable of the reference side (default: bpy)",
+                    test_help="Blender executable of the test side (default: --blender)",
+                ),
+                **dict.fromkeys(
+                    ("suite bless", "suite run"), Use(help="render with this Blender executable instead of bpy")
+                ),
+            },
+        ),
         Option(
             "python",
             "--python",
             None,
-            text,
+            "text",
             "render with this Python interpreter, whose environment has another release's bpy module (python -m "
             "batch bpy VERSION makes one); its version and build are recorded",
             metavar="PATH",
-        ),  # fmt: skip
+            sides=_BOTH,
+            uses={
+                "render": _USE,
+                "check": Use(
+                    help="a Python with another release's bpy module for the reference side (python -m batch bpy "
+                    "VERSION makes one)",
+                    test_help="the test side's Python with a bpy module (default: --python)",
+                ),
+                **dict.fromkeys(
+                    ("suite bless", "suite run"), Use(help="render with this Python's bpy module (another release)")
+                ),
+            },
+        ),
         Option(
             "max_passes",
             "--max-passes",
             "passes",
-            lambda n, v: integer(n, v, 2, MAX_PASSES),
+            "integer",
             "the most passes a side",
+            default=512,
+            low=2,
+            high=MAX_PASSES,
             metavar="N",
-        ),  # fmt: skip
-        Option("max_seconds", "--max-seconds", "seconds", seconds, "the most render seconds", metavar="S"),
+            uses={
+                "check": Use(deferred=True, help="the most passes a side (default {default})"),
+                "case": Use(64),
+                "addon": _USE,
+            },
+        ),
+        Option(
+            "passes",
+            "--passes",
+            None,
+            "integer",
+            "passes per build",
+            low=2,
+            high=MAX_PASSES,
+            uses={"matrix": Use(32), "bisect": Use(32), "demo": Use(help="passes per side")},
+        ),
+        Option(
+            "max_seconds",
+            "--max-seconds",
+            "seconds",
+            "seconds",
+            "the most render seconds",
+            low=0,
+            high=MAX_SECONDS,
+            metavar="S",
+            uses={"check": Use(help="the most render seconds, both sides together"), "case": _USE},
+        ),
         Option(
             "tolerance",
             "--tolerance",
             "tolerance",
-            percentage,
+            "percentage",
             "the relative difference within which the two count as equivalent, e.g. 1%",
+            default=0.01,
+            low=0.0,
+            high=MAX_TOLERANCE,
             metavar="PERCENT",
-        ),  # fmt: skip
-        Option("alpha", "--alpha", "alpha", probability, "the false-positive rate of each verdict", number=True),
+            off=True,
+            uses={
+                "check": Use(
+                    help="stop at `equivalent` once every tile of the finest tile size is bounded within this "
+                    "relative difference (default {default}; `off`: stop only at `biased`, so that a bias smaller "
+                    "than any tolerance is found given the passes)"
+                ),
+                **dict.fromkeys(
+                    ("compare", "selftest"),
+                    Use(
+                        None,
+                        "e.g. 0.5%: the verdict is `equivalent` when every tile of the finest tile size is "
+                        "bounded within it (else `inconclusive`, saying what is bounded and what is not)",
+                    ),
+                ),
+                "matrix": Use(None, _MATRIX_TOLERANCE),
+                "bisect": Use(None, _MATRIX_TOLERANCE),
+                "case": Use(None),  # None: the suite's
+                "suite": _USE,  # the suite file's [suite] tolerance
+                "addon": _USE,
+            },
+        ),
+        Option(
+            "alpha",
+            "--alpha",
+            "alpha",
+            "probability",
+            "the false-positive rate of each verdict",
+            default=0.01,
+            low=0.0,
+            high=1.0,
+            number=True,
+            uses={
+                "check": _USE,
+                **dict.fromkeys(("compare", "selftest"), Use(help="false-positive rate of a biased verdict")),
+                "matrix": _USE,
+                "bisect": _USE,
+                "suite": _USE,  # the suite file's [suite] alpha
+                "addon": _USE,
+            },
+        ),
     )
 }
 
+#: Options in which the test side may differ from the reference (``--test-spp``, a suite case's ``test_spp``):
+#: settings that change only how the passes are drawn, so both sides still render the same converged image.
+TEST_SIDE = tuple(dest for dest, o in OPTIONS.items() if "test" in o.sides and o.draws)
+
+
+def default(dest: str, place: str):
+    """The default of option `dest` at `place` (a command, ``case``, ``suite`` or ``addon``)."""
+    return OPTIONS[dest].default_for(place)
+
 
 def argparse_type(option: Option, flag: str | None = None) -> Callable[[str], Any]:
-    """The option's check as an argparse ``type`` (its error as argparse's, which names the flag)."""
+    """The option's check as an argparse ``type`` (its error as argparse's, which names the flag); ``off`` is
+    None where the option has `Option.off`."""
+    flag = flag or option.flag
 
     def convert(value: str):
+        if option.off and value.strip().lower() == "off":
+            return None
         try:
-            return option.convert(flag or option.flag, value)
+            return option.convert(flag, value)
         except BatchError as exc:
-            message = str(exc).removeprefix(f"{flag or option.flag} ")
-            raise argparse.ArgumentTypeError(message) from None
+            raise argparse.ArgumentTypeError(str(exc).removeprefix(f"{flag} ")) from None
 
     convert.__name__ = option.dest
     return convert
 
 
-#: Options in which the test side may differ from the reference (``--test-spp``, a suite case's ``test_spp``):
-#: settings that change only how the passes are drawn, so both sides still render the same converged image.
-TEST_SIDE = ("spp", "device", "sampling_pattern")
-
-
-def add_options(
-    parser, dests: Iterable[str], defaults: dict[str, Any] | None = None, helps: dict | None = None, test=False
-):
-    """Declare the options `dests` on `parser` with their flags, checks and help; `defaults` and `helps` per dest
-    (a default shows in the help). `test`: the test side's own (``--test-spp``, dest ``test_spp``; default
-    None: the reference side's)."""
-    defaults, helps = defaults or {}, helps or {}
+def add_options(parser, command: str, dests: Iterable[str], side: str = "reference"):
+    """Declare the options `dests` on `parser` as `command` takes them: flags, checks, defaults and help from
+    the declaration. `side` ``test``: the test side's own (``--test-spp``, dest ``test_spp``; default None: the
+    reference's)."""
     for dest in dests:
         option = OPTIONS[dest]
-        if test:
-            flag = "--test-" + option.flag.removeprefix("--")
-            text = helps.get(
-                dest, f"the test side's {option.help.split(',')[0].split(' (')[0]} (default: the reference's)"
-            )
-            option = Option(
-                f"test_{dest}", flag, None, option.convert, text, option.metavar or dest.upper(), option.many
-            )
-        kwargs: dict[str, Any] = {"dest": option.dest, "help": helps.get(dest, option.help)}
-        if option.metavar:
-            kwargs["metavar"] = option.metavar if " " not in option.metavar else tuple(option.metavar.split())
-        if dest == "resolution":
-            kwargs |= {"nargs": 2, "type": argparse_type(Option("resolution", option.flag, None, _side, ""))}
-        elif dest in ("device", "devices"):
-            kwargs["choices"] = DEVICES
+        use = option.use(command)
+        value = None if use.deferred else option.default_for(command)
+        shown = option.default_for(command)
+        help_text = use.help or option.help
+        flag, dest_name, metavar = option.flag, dest, option.metavar
+        if side == "test":
+            if "test" not in option.sides:
+                raise KeyError(f"{option.flag} has no test side")
+            flag, dest_name, metavar = "--test-" + flag.removeprefix("--"), f"test_{dest}", metavar or dest.upper()
+            what = option.help.split(",")[0].split(" (")[0]
+            help_text = use.test_help or f"the test side's {what} (default: the reference's)"
+            value = shown = () if option.many else None
+        if "{default}" in help_text:
+            help_text = help_text.format(default=option.show(shown))
+        elif shown not in (None, [], ()) and not use.required:
+            help_text += f" (default {option.show(shown)})"
+        kwargs: dict[str, Any] = {"dest": dest_name, "help": help_text.replace("%", "%%")}
+        if metavar:
+            kwargs["metavar"] = metavar if " " not in metavar else tuple(metavar.split())
+        if option.kind == "resolution":
+            side_of = replace(option, kind="integer")
+            kwargs |= {"nargs": 2, "type": argparse_type(side_of, flag)}
+        elif option.kind == "choice" and side == "reference":
+            kwargs["choices"] = option.choices
         else:
-            kwargs["type"] = argparse_type(option)
+            kwargs["type"] = argparse_type(option, flag)
         if option.many:
             kwargs |= {"action": "append", "default": []}
-        if dest in defaults:
-            kwargs["default"] = defaults[dest]
-            kwargs["help"] += f" (default {defaults[dest]})" if defaults[dest] not in (None, [], ()) else ""
-        parser.add_argument(option.flag, **kwargs)
+        elif use.required:
+            kwargs["required"] = True
+        else:
+            kwargs["default"] = value
+        parser.add_argument(flag, **kwargs)
+
+
+def _case_options() -> tuple[Option, ...]:
+    """The options a suite case takes, by their keys: the declared ones, and ``test_<key>`` for those whose test
+    side may differ (default None: the reference's)."""
+    declared = [o for o in OPTIONS.values() if o.key is not None and "case" in o.uses]
+    test_side = [replace(o, dest=f"test_{o.dest}", key=f"test_{o.key}", uses={"case": Use(None)})
+                 for o in declared if o.dest in TEST_SIDE]  # fmt: skip
+    return (*declared, *test_side)
+
+
+#: The options a suite case takes (`from_mapping` reads them; the other keys of a case are the suite's own).
+CASE_OPTIONS = _case_options()
 
 
 def from_mapping(entry: dict, label: str, problems: list[str]) -> dict[str, Any]:
     """The options a suite case gives (by their keys), checked: a bad value is added to `problems` (naming
     `label` and the key) and left out."""
     values = {}
-    test_side = [Option(f"test_{o.dest}", o.flag, f"test_{o.key}", o.convert, o.help, number=o.number)
-                 for o in OPTIONS.values() if o.dest in TEST_SIDE and o.key is not None]  # fmt: skip
-    for option in [*OPTIONS.values(), *test_side]:
-        if option.key is None or option.key not in entry:
+    for option in CASE_OPTIONS:
+        if option.key not in entry:
             continue
         value = entry[option.key]
         try:

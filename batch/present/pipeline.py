@@ -12,6 +12,7 @@ from typing import Any
 
 from .._siblings import welch_core as wc
 from ..jobs.lobes import COMPONENTS
+from ..jobs.options import default
 from . import summary as summaries
 
 
@@ -80,9 +81,10 @@ def _load(ref_path: str, test_path: str, pixels: bool):
     return ref, test, (wc.load_layers(ref_path, pixels=False), wc.load_layers(test_path, pixels=False))
 
 
-def compare_files(ref_path: str, test_path: str, out_dir: str, *, alpha: float = 0.01, kind: str = "auto",
-                  pvalue_method: str = "exact", tile: int | None = None, tolerance: float | None = None,
-                  equivalence_tile: int | None = None, full_maps: bool = False) -> dict[str, Any]:  # fmt: skip
+def compare_files(ref_path: str, test_path: str, out_dir: str, *, alpha: float = default("alpha", "compare"),
+                  kind: str = "auto", pvalue_method: str = "exact", tile: int | None = None,
+                  tolerance: float | None = None, equivalence_tile: int | None = None,
+                  full_maps: bool = False) -> dict[str, Any]:  # fmt: skip
     """Load two statistics files, compare them and their layers, and report into `out_dir` (the `compare`
     command). The pixel sums are read only where full-resolution maps are asked for; the page needs the stored
     previews alone."""

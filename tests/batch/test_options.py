@@ -1,0 +1,160 @@
+"""The one declaration of the options (batch.jobs.options) against what uses it: every command's parser (its
+defaults read back from parse_args, its limits by the values it refuses, no flag of a declared option declared
+again by hand) and a suite file's cases (their defaults and limits). The add-on's properties are held to it in
+tests/addon/test_properties.py."""
+
+from __future__ import annotations
+
+import argparse
+
+import pytest
+
+from batch.cli.commands import build_parser
+from batch.decide import suite as suites
+from batch.errors import BatchError
+from batch.jobs.options import CASE_OPTIONS, OPTIONS, TEST_SIDE, default
+
+#: Each command's shortest command line: what every other option is defaulted in.
+ARGV = {
+    "render": ["render", "--seeds", "0:2", "--spp", "1", "--out", "x"],
+    "check": ["check", "--out", "x"],
+    "ingest": ["ingest", "a.exr", "--spp", "1", "--out", "x"],
+    "compare": ["compare", "a", "b", "--out", "x"],
+    "selftest": ["selftest", "a", "--out", "x"],
+    "merge": ["merge", "a", "--out", "x"],
+    "lint": ["lint", "a"],
+    "suite bless": ["suite", "bless", "builtin"],
+    "suite run": ["suite", "run", "builtin", "--out", "x"],
+    "matrix": ["matrix", "--builds", "current", "--out", "x"],
+    "bisect": ["bisect", "--builds", "current", "--out", "x"],
+    "bpy": ["bpy"],
+    "demo": ["demo"],
+}
+#: The places that are not commands: a suite file's case and [suite] table, the add-on's panel.
+NOT_COMMANDS = {"case", "suite", "addon"}
+#: Flags of a declared option's name that are another option: demo's --resolution is one side of a square image.
+OTHER_OPTIONS = {("demo", "--resolution")}
+
+USES = [(dest, place) for dest, o in OPTIONS.items() for place in o.uses if place not in NOT_COMMANDS]
+
+
+def parsers() -> dict[str, argparse.ArgumentParser]:
+    """Every command's parser by its name (``suite run`` for the nested ones)."""
+    found = {}
+
+    def walk(parser, prefix):
+        for action in parser._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                for name, sub in action.choices.items():
+                    found[f"{prefix} {name}".strip()] = sub
+                    walk(sub, f"{prefix} {name}")
+
+    walk(build_parser(), "")
+    return found
+
+
+def parse(*argv) -> argparse.Namespace:
+    return build_parser().parse_args([str(a) for a in argv])
+
+
+def test_every_command_of_the_parser_has_a_short_command_line():
+    assert set(ARGV) == {name for name in parsers() if name != "suite"}
+
+
+@pytest.mark.parametrize(("dest", "command"), USES)
+def test_a_command_parses_the_declared_default(dest, command):
+    option = OPTIONS[dest]
+    use = option.use(command)
+    if use.required:
+        assert dest in vars(parse(*ARGV[command]))  # given in its short command line
+        return
+    parsed = getattr(parse(*ARGV[command]), dest)
+    expected = None if use.deferred else option.default_for(command)
+    assert (list(parsed) if option.many else parsed) == (list(expected) if option.many else expected)
+    if "test" in option.sides and use.test_help is not None:
+        assert getattr(parse(*ARGV[command]), f"test_{dest}") in (None, [])
+
+
+@pytest.mark.parametrize(("dest", "command"), USES)
+def test_a_command_takes_the_declared_limits(dest, command, capsys):
+    option = OPTIONS[dest]
+    argv = ARGV[command]
+    if option.kind == "integer":
+        assert getattr(parse(*argv, option.flag, option.high), dest) == option.high
+        assert getattr(parse(*argv, option.flag, option.low), dest) == option.low
+        for wrong in (option.low - 1, option.high + 1):
+            with pytest.raises(SystemExit):
+                parse(*argv, option.flag, wrong)
+            assert f"must be an integer in {option.low}..{option.high}" in capsys.readouterr().err
+    elif option.kind == "choice":
+        for value in option.choices:
+            assert getattr(parse(*argv, option.flag, value), dest) == value
+        with pytest.raises(SystemExit):
+            parse(*argv, option.flag, "TPU")
+    elif option.kind in ("probability", "seconds"):
+        with pytest.raises(SystemExit):
+            parse(*argv, option.flag, option.low)
+        assert getattr(parse(*argv, option.flag, option.high / 2), dest) == option.high / 2
+    elif option.kind == "percentage":
+        assert getattr(parse(*argv, option.flag, f"{option.high * 50:g}%"), dest) == option.high / 2
+        for wrong in ("0%", f"{option.high * 100:g}%"):
+            with pytest.raises(SystemExit):
+                parse(*argv, option.flag, wrong)
+        assert getattr(parse(*argv, option.flag, "off"), dest) is None
+
+
+def test_no_command_declares_a_declared_option_again():
+    """A flag of a declared option (or of its test side) is on a command's parser only where the declaration
+    says the command takes it."""
+    flags = {}
+    for option in OPTIONS.values():
+        flags.setdefault(option.flag, []).append(option)
+        if "test" in option.sides:
+            flags.setdefault("--test-" + option.flag.removeprefix("--"), []).append(option)
+    for command, parser in parsers().items():
+        for action in parser._actions:
+            for flag in action.option_strings:
+                if flag in flags and (command, flag) not in OTHER_OPTIONS:
+                    assert any(command in o.uses for o in flags[flag]), f"{command} {flag} is declared by hand"
+
+
+def test_the_test_side_of_a_check():
+    assert TEST_SIDE == ("spp", "device", "sampling_pattern")
+    parsed = parse(*ARGV["check"], "--test-spp", 4, "--test-blender", "b", "--test-python", "p")
+    assert (parsed.test_spp, parsed.test_blender, parsed.test_python, parsed.test_device) == (4, "b", "p", None)
+    assert parse(*ARGV["bisect"], "--test-set", "cycles.samples=2").test_overrides == ["cycles.samples=2"]
+
+
+def write_suite(tmp_path, case: str = "", header: str = "") -> suites.Suite:
+    path = tmp_path / "suite.toml"
+    path.write_text(f'{header}[[case]]\nname = "a"\nscene = "corner"\n{case}')
+    return suites.load_suite(str(path))
+
+
+def test_a_case_has_the_declared_defaults(tmp_path):
+    loaded = write_suite(tmp_path)
+    case = loaded.cases[0]
+    fields = {"max_passes": "passes", "max_seconds": "seconds"}
+    for option in CASE_OPTIONS:
+        assert getattr(case, fields.get(option.dest, option.dest)) == option.default_for("case"), option.key
+    assert (loaded.alpha, loaded.tolerance) == (default("alpha", "suite"), default("tolerance", "suite"))
+    assert {o.key for o in CASE_OPTIONS} <= suites._CASE_KEYS
+
+
+@pytest.mark.parametrize("option", [o for o in CASE_OPTIONS if o.kind == "integer"], ids=lambda o: o.key)
+def test_a_case_takes_the_declared_limits(tmp_path, option):
+    extra = 'tolerance = "1%"\n' if option.dest == "equivalence_tile" else ""  # a claim needs a tolerance
+    high = option.high if option.dest != "equivalence_tile" else 16 * (option.high // 16)  # a multiple of the tile
+    if option.dest != "tile":  # a tile as large as the limit is larger than the image
+        case = write_suite(tmp_path, f"{extra}{option.key} = {high}\n").cases[0]
+        assert getattr(case, {"max_passes": "passes"}.get(option.dest, option.dest)) == high
+    for wrong in (option.low - 1, option.high + 1):
+        with pytest.raises(BatchError, match=f"'{option.key}' must be an integer in {option.low}..{option.high}"):
+            write_suite(tmp_path, f"{extra}{option.key} = {wrong}\n")
+
+
+def test_the_suite_table_takes_the_declared_limits(tmp_path):
+    with pytest.raises(BatchError, match=r"\[suite\] alpha must be a number in \(0, 1\)"):
+        write_suite(tmp_path, header="[suite]\nalpha = 1.0\n")
+    with pytest.raises(BatchError, match=r"\[suite\] tolerance must be a percentage"):
+        write_suite(tmp_path, header=f'[suite]\ntolerance = "{OPTIONS["tolerance"].high * 100:g}%"\n')
