@@ -120,7 +120,8 @@ def test_a_failure_before_argument_parsing_is_internal_not_biased(tmp_path):
     broken = tmp_path / "batch"
     broken.mkdir()
     (broken / "__init__.py").write_text("")
-    (broken / "__main__.py").write_text((ROOT / "batch" / "__main__.py").read_text())
+    for name in ("__main__.py", "errors.py"):  # the entry point and the exit codes it needs (standard library only)
+        (broken / name).write_text((ROOT / "batch" / name).read_text())
     (broken / "cli.py").write_text("import no_such_module\n")
     env = dict(os.environ, PYTHONPATH=str(tmp_path))
     done = subprocess.run([sys.executable, "-m", "batch", "render"], cwd=tmp_path, capture_output=True, text=True,
