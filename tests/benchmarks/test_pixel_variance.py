@@ -71,6 +71,10 @@ def test_the_fallback_takes_the_tile_test_where_few_pixels_vary():
     assert plain.df[0, 0, 0] < 5 and fallback.fallback[0, 0, 0] and fallback.fallback.sum() == 1
     assert fallback.pvalue[0, 0, 0] == pytest.approx(pv.tile_welch(sa, sb)[0][0, 0, 0])
     np.testing.assert_array_equal(np.delete(fallback.pvalue.ravel(), 0), np.delete(plain.pvalue.ravel(), 0))
+    dropped = pv.pixel_test(sa, sb, pv.DF_FLOOR, "drop").pvalue
+    assert np.isnan(dropped[0, 0, 0]) and np.array_equal(
+        np.delete(dropped.ravel(), 0), np.delete(plain.pvalue.ravel(), 0)
+    )
 
 
 def test_a_constant_tile_is_untestable_and_a_constant_difference_is_found():
