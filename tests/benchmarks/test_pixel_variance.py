@@ -109,7 +109,7 @@ def test_quick_run_writes_its_csv_and_chart(tmp_path):
     kinds = [r["kind"] for r in rows]
     assert kinds.count("dependence") == len(pv.POOLS)
     assert kinds.count("aa") == len(pv.POOLS) * len(pv.CONFIGS) * len(pv.METHODS)
-    assert kinds.count("power") == len(pv.POWER_PAIRS) * len(pv.POWER_N) * len(pv.METHODS)
+    assert kinds.count("power") == len(pv.POWER_PAIRS) * len(pv.QUICK["power_n"]) * len(pv.METHODS)
     scrambled = next(r for r in rows if r["kind"] == "dependence" and r["pool"] == "corner_scrambling")
     assert float(scrambled["d_median"]) > 10
     assert (tmp_path / "pixel_variance.png").stat().st_size > 0
