@@ -13,6 +13,8 @@ docs/findings/.
 - ``sparse``: changes that alter a few light paths: the paired test alone, Welch's test and the default.
 - ``power``: passes a side to `biased`: `check` against the best fixed design and a matched-filter oracle.
 - ``moderated``: moderated variances (limma's empirical Bayes) against `check`'s t-tests at small n.
+- ``pixel_variance``: a tile's variance from its pixels' variances (issue 32): calibration, the dependence ratio
+  D, broken sampling settings and power, against the tile test.
 - ``blue_noise_volume``: Cycles' blue-noise pattern against Tabulated Sobol on a cube of fog, the measurement
   behind docs/findings/blue_noise_volume.md (a finding about a renderer, not a benchmark of this tool).
 """

@@ -1,0 +1,115 @@
+"""The pixel-variance study (benchmarks.studies.pixel_variance): its statistic against direct computations on
+stacked images and scipy, its p-values uniform where pixels are iid, the dependence ratio D, and the quick run."""
+
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+from scipy import stats
+
+import welch_core as wc
+from benchmarks.studies import pixel_variance as pv
+
+TILE = 16
+
+
+def _images(rng, n: int, size: int = 32, scale=None) -> np.ndarray:
+    """n passes of iid normal pixels (n, size, size, 3), each pixel with its own mean and standard deviation."""
+    if scale is None:
+        scale = rng.uniform(0.2, 3.0, (size, size, 3))
+    return 5.0 + scale * rng.standard_normal((n, size, size, 3))
+
+
+def test_statistic_matches_a_direct_computation_per_tile_channel():
+    rng = np.random.default_rng(1)
+    a, b = _images(rng, 3), _images(rng, 5)
+    result = pv.pixel_test(pv.side(a), pv.side(b), df_floor=None)
+    for i in range(2):
+        for j in range(2):
+            for c in range(3):
+                block = np.s_[:, i * TILE : (i + 1) * TILE, j * TILE : (j + 1) * TILE, c]
+                xa, xb = a[block].reshape(3, -1), b[block].reshape(5, -1)
+                va, vb = np.var(xa, axis=0, ddof=1) / 3, np.var(xb, axis=0, ddof=1) / 5
+                se2 = va.sum() + vb.sum()
+                df = se2**2 / ((va**2).sum() / 2 + (vb**2).sum() / 4)
+                t = (xb.sum(axis=1).mean() - xa.sum(axis=1).mean()) / np.sqrt(se2)
+                assert result.df[i, j, c] == pytest.approx(df, rel=1e-10)
+                assert result.pvalue[i, j, c] == pytest.approx(2 * stats.t.sf(abs(t), df), rel=1e-8)
+    assert not result.fallback.any()
+
+
+def test_tile_welch_is_scipys_welch_on_the_tile_sums():
+    rng = np.random.default_rng(2)
+    a, b = _images(rng, 4), _images(rng, 7)
+    p, _df = pv.tile_welch(pv.side(a), pv.side(b))
+    sums_a, sums_b = pv.tile_total(a), pv.tile_total(b)
+    expected = stats.ttest_ind(sums_b, sums_a, axis=0, equal_var=False).pvalue
+    np.testing.assert_allclose(p, expected, rtol=1e-8)
+
+
+@pytest.mark.parametrize("n_a, n_b", [(2, 2), (3, 8)])
+def test_pvalues_are_uniform_where_pixels_are_iid(n_a, n_b):
+    rng = np.random.default_rng([3, n_a, n_b])
+    scale = rng.uniform(0.2, 3.0, (32, 32, 3))
+    trials = 400
+    a = _images(rng, trials * n_a, scale=scale).reshape(trials, n_a, 32, 32, 3)
+    b = _images(rng, trials * n_b, scale=2 * scale).reshape(trials, n_b, 32, 32, 3)  # unequal variances
+    result = pv.pixel_test(pv.side(a), pv.side(b), df_floor=None)
+    assert np.median(result.df) > 30  # far above the tile test's n - 1
+    assert stats.kstest(result.pvalue.ravel(), "uniform").pvalue > 0.001
+
+
+def test_the_fallback_takes_the_tile_test_where_few_pixels_vary():
+    rng = np.random.default_rng(4)
+    a, b = _images(rng, 3), _images(rng, 3)
+    a[:, :TILE, :TILE, 0], b[:, :TILE, :TILE, 0] = 1.0, 1.0  # tile (0, 0), red: one varying pixel a side
+    a[:, 0, 0, 0], b[:, 0, 0, 0] = rng.standard_normal(3), rng.standard_normal(3)
+    sa, sb = pv.side(a), pv.side(b)
+    plain, fallback = pv.pixel_test(sa, sb, None), pv.pixel_test(sa, sb, pv.DF_FLOOR)
+    assert plain.df[0, 0, 0] < 5 and fallback.fallback[0, 0, 0] and fallback.fallback.sum() == 1
+    assert fallback.pvalue[0, 0, 0] == pytest.approx(pv.tile_welch(sa, sb)[0][0, 0, 0])
+    np.testing.assert_array_equal(np.delete(fallback.pvalue.ravel(), 0), np.delete(plain.pvalue.ravel(), 0))
+    dropped = pv.pixel_test(sa, sb, pv.DF_FLOOR, "drop").pvalue
+    assert np.isnan(dropped[0, 0, 0]) and np.array_equal(
+        np.delete(dropped.ravel(), 0), np.delete(plain.pvalue.ravel(), 0)
+    )
+
+
+def test_a_constant_tile_is_untestable_and_a_constant_difference_is_found():
+    a, b = np.ones((2, 16, 16, 3)), np.ones((2, 16, 16, 3))
+    b[..., 1] = 2.0
+    p = pv.pixel_test(pv.side(a), pv.side(b)).pvalue
+    assert np.isnan(p[0, 0, 0]) and p[0, 0, 1] == 0.0
+
+
+def test_family_pvalue_is_the_smallest_holm_adjusted_tile_pvalue():
+    rng = np.random.default_rng(5)
+    p = rng.uniform(0, 0.2, (6, 4, 4, 3))
+    p[0, 1, 2, :] = np.nan  # an untestable tile
+    p[1, 0, 0, 1] = np.nan  # one untestable channel
+    expected = [np.nanmin(wc.holm(wc.combine_channels(trial))) for trial in p]
+    np.testing.assert_allclose(pv.family_pvalue(p), expected)
+
+
+def test_dependence_is_one_for_independent_pixels_and_the_tile_area_for_copies():
+    rng = np.random.default_rng(6)
+    independent = pv.dependence(_images(rng, 2000))
+    assert abs(np.median(independent) - 1) < 0.05
+    copies = np.repeat(np.repeat(rng.standard_normal((50, 2, 2, 3)), TILE, axis=1), TILE, axis=2)
+    np.testing.assert_allclose(pv.dependence(copies + 1e-9 * rng.standard_normal(copies.shape)), TILE**2, rtol=1e-6)
+
+
+def test_quick_run_writes_its_csv_and_chart(tmp_path):
+    pytest.importorskip("bpy")  # renders the quick pools that the cache does not hold
+    assert pv.main(["--quick", "--out", str(tmp_path)]) == 0
+    with open(tmp_path / "pixel_variance.csv") as f:
+        rows = list(csv.DictReader(f))
+    kinds = [r["kind"] for r in rows]
+    assert kinds.count("dependence") == len(pv.POOLS)
+    assert kinds.count("aa") == len(pv.POOLS) * len(pv.CONFIGS) * len(pv.METHODS)
+    assert kinds.count("power") == len(pv.POWER_PAIRS) * len(pv.QUICK["power_n"]) * len(pv.METHODS)
+    scrambled = next(r for r in rows if r["kind"] == "dependence" and r["pool"] == "corner_scrambling")
+    assert float(scrambled["d_median"]) > 10
+    assert (tmp_path / "pixel_variance.png").stat().st_size > 0
