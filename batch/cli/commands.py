@@ -119,16 +119,15 @@ def _add_check(sub) -> None:
         "disjoint seeds. Ctrl-C keeps everything; --resume continues.",
     )
     k.add_argument("blend", nargs="?", metavar="SCENE.blend", help="scene file of the reference side")
-    k.add_argument("--scene", help="a built-in scene instead of a file (both sides)")
+    add_options(k, "check", ("scene",))
     add_options(k, "check", ("blend_scene", "overrides"))
     k.add_argument("--test-blend", metavar="OTHER.blend", help="the test side's scene file (default: SCENE.blend)")
     k.add_argument("--test-blend-scene", metavar="NAME", help="which scene of the test side's file")
     add_options(k, "check", ("blender", "python"))
     add_options(k, "check", ("blender", "python"), side="test")
-    k.add_argument("--command", dest="pass_command", metavar="TEMPLATE", help="render the reference's passes with "
-                   "this command of another renderer instead of Cycles (as render --command; no scene)")  # fmt: skip
+    add_options(k, "check", ("pass_command",))
     k.add_argument("--test-command", metavar="TEMPLATE", help="the test side's command (default: --command)")
-    k.add_argument("--command-dir", metavar="DIR", help="the folder the commands run in (default: this one)")
+    add_options(k, "check", ("command_dir",))
     add_options(k, "check", ("tolerance", "equivalence_tile"))
     k.add_argument(
         "--no-futility",
@@ -173,7 +172,7 @@ def _add_ingest(sub) -> None:
         help="also read these layers of multilayer EXRs (each NAME.R/G/B, under any view-layer prefix) into "
         "layers of the statistics file, tested by compare one by one (light components of other renderers)",
     )
-    i.add_argument("--on-nan", default="stop", choices=jobs.ON_NAN)
+    add_options(i, "ingest", ("on_nan",))
     i.add_argument("--out", required=True, metavar="STATS", help="statistics file to write (must not exist)")
 
 
@@ -297,7 +296,7 @@ def _add_matrix(sub) -> None:
                "alpha." if name == "bisect" else " Each cell is decided at alpha on its own."),
         )  # fmt: skip
         m.add_argument("blend", nargs="?", metavar="SCENE.blend", help="the scene file")
-        m.add_argument("--scene", help="a built-in scene instead of a file")
+        add_options(m, name, ("scene",))
         m.add_argument("--builds", nargs="+", required=True, metavar="BUILD", help="the builds, oldest first")
         add_options(m, name, ("blend_scene", "resolution", "device", "sampling_pattern", "overrides", "spp", "tile",
                               "passes", "alpha", "tolerance"))  # fmt: skip

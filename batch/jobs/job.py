@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from ..errors import BatchError
 from . import options
 from .lobes import LOBES, parse_lobes
-from .options import DEVICES, add_options, default
+from .options import DEVICES, ON_NAN, add_options, default
 from .seeds import MAX_PASSES, format_seeds, parse_seeds
 
 #: The built-in scenes (`batch.blender.scenes.SCENES` builds them; a test holds the two together), named here so
@@ -41,7 +41,6 @@ NO_GPU_MESSAGE = "Cycles found no GPU"
 
 #: A pass with NaN/inf pixels: stop the run (what was accumulated is kept), skip the pass, or keep it (its
 #: tiles are excluded from the test with the reason non_finite).
-ON_NAN = ("stop", "skip", "keep")
 
 #: The sampling pattern of a built-in scene, the first this Blender has: Cycles' tabulated Sobol (the startup
 #: file's pattern), else the Sobol variant an older Blender has. A scene file renders with its own pattern unless
@@ -246,26 +245,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the options of a render job (the ``render`` command's; `batch.jobs.options` declares the ones
     other commands and the suite files share)."""
     parser.add_argument("blend", nargs="?", metavar="SCENE.blend", help="scene file (default: the file Blender opened)")
-    parser.add_argument("--scene", help="a built-in scene instead of a file (see --help of `demo` for the list)")
+    add_options(parser, "render", ("scene",))
     parser.add_argument("--seeds", type=seeds_arg, required=True, help="A:B (half-open range) or S1,S2,...")
-    add_options(parser, "render", ("blend_scene", "spp", "tile", "resolution", "device", "sampling_pattern",
-                                   "overrides", "lobes", "blender", "python"))  # fmt: skip
-    parser.add_argument(
-        "--command",
-        dest="pass_command",  # "command" is the subcommand's
-        metavar="TEMPLATE",
-        help="render each pass with this command instead of Cycles (another renderer): it must write the pass of "
-        "{seed} into the EXR {out}; also {spp}, {set} (the overrides, one argument each), {python} (this Python); "
-        "e.g. '{python} render.py --seed {seed} --out {out}'",
-    )
-    parser.add_argument("--command-dir", metavar="DIR", help="the folder --command runs in (default: this one)")
+    declared = ("blend_scene", "spp", "tile", "resolution", "device", "sampling_pattern", "overrides", "lobes",
+                "blender", "python", "pass_command", "command_dir")  # fmt: skip
+    add_options(parser, "render", declared)
     parser.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")
-    parser.add_argument(
-        "--on-nan",
-        default="stop",
-        choices=ON_NAN,
-        help="a pass with NaN/inf pixels: stop the run, skip the pass, or keep it (its tiles are excluded)",
-    )
+    add_options(parser, "render", ("on_nan",))
     parser.add_argument(
         "--checkpoint-every",
         type=positive_int,

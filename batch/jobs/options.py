@@ -34,6 +34,8 @@ MAX_TOLERANCE = 10.0
 #: The devices a job may ask for: the CPU, the first GPU backend that has a device, or one backend.
 GPU_BACKENDS = ("OPTIX", "CUDA", "HIP", "METAL", "ONEAPI")
 DEVICES = ("CPU", "GPU", *GPU_BACKENDS)
+#: What a pass with NaN or inf pixels does to a run (`batch.jobs.passes`).
+ON_NAN = ("stop", "skip", "keep")
 
 
 # -- values ------------------------------------------------------------------------------------------------------
@@ -394,6 +396,55 @@ OPTIONS = {
                     help="also render light components and light groups (as render --lobes); the report tests each"
                 ),
             },
+        ),
+        Option(
+            "scene",
+            "--scene",
+            None,  # a suite case's scene is checked by the suite (a file or a built-in scene)
+            "text",
+            "a built-in scene instead of a file",
+            uses={
+                "render": Use(help="a built-in scene instead of a file (see --help of `demo` for the list)"),
+                "check": Use(help="a built-in scene instead of a file (both sides)"),
+                "matrix": _USE,
+                "bisect": _USE,
+            },
+        ),
+        Option(
+            "pass_command",
+            "--command",
+            None,  # a suite case's command is checked by the suite
+            "text",
+            "render each pass with this command instead of Cycles (another renderer): it must write the pass of "
+            "{seed} into the EXR {out}; also {spp}, {set} (the overrides, one argument each), {python} (this "
+            "Python); e.g. '{python} render.py --seed {seed} --out {out}'",
+            metavar="TEMPLATE",
+            uses={
+                "render": _USE,
+                "check": Use(
+                    help="render the reference's passes with this command of another renderer instead of "
+                    "Cycles (as render --command; no scene)"
+                ),  # fmt: skip
+            },
+        ),
+        Option(
+            "command_dir",
+            "--command-dir",
+            None,
+            "text",
+            "the folder --command runs in (default: this one)",
+            metavar="DIR",
+            uses={"render": _USE, "check": Use(help="the folder the commands run in (default: this one)")},
+        ),
+        Option(
+            "on_nan",
+            "--on-nan",
+            None,
+            "choice",
+            "a pass with NaN/inf pixels: stop the run, skip the pass, or keep it (its tiles are excluded)",
+            default="stop",
+            choices=ON_NAN,
+            uses=dict.fromkeys(("render", "ingest"), _USE),
         ),
         Option(
             "blend_scene",

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._siblings import welch_core as wc
-from .job import ON_NAN
+from .options import ON_NAN
 
 
 def add_pass(stats: wc.TileStats, image: np.ndarray, seed: int, on_nan: str, warn) -> bool:
