@@ -99,7 +99,7 @@ def _start(job: RenderJob, size, info: wc.RunInfo, scene) -> tuple[wc.TileStats,
     """The statistics and layers (`job.lobes`: light components, light groups) a run starts from: new ones, or
     the checkpoint in `job.out` when resuming (checked to be the same run); `size()` is the image's (width,
     height)."""
-    if os.path.exists(job.out) and not job.resume:
+    if os.path.exists(job.out) and not job.resume:  # before size(), which may render a command's first pass
         raise RunError(f"{job.out} already exists: pass --resume to continue it, or choose another --out")
     width, height = size()
     if job.tile > min(width, height):

@@ -6,6 +6,7 @@ that arrived lost on a failure, Ctrl-C or SIGTERM. Resuming a statistics file is
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -113,8 +114,6 @@ def resumed(job: RenderJob, fresh: wc.TileStats | None = None) -> tuple[wc.TileS
     job's seeds and, where the run's configuration is known before anything renders (`fresh`: the grid and
     `RunInfo` of this run), against that; else `fresh` and no layers. Refused in one line where the file exists
     and `job.resume` is off."""
-    import os
-
     if not os.path.exists(job.out):
         return fresh, {}
     if not job.resume:
