@@ -54,8 +54,9 @@ class ClusterSide(Side):
         if not self._asked:
             return True
         run = Run.of(self.job, *resumed(self.job.replace(resume=True)))
-        render_loop(self._arrivals(), run, _SideEvents(self), math.inf)
-        run.save()
+        render_loop(self._arrivals(), run, _SideEvents(self), math.inf)  # saves once, at the end
+        if run.stats is not None and not os.path.exists(self.job.out):
+            run.save()  # every pass skipped (--on-nan skip): the file still answers
         if run.stats is not None:
             self.passes = run.stats.n
         self._asked = 0
