@@ -25,6 +25,7 @@ from .effect import Effect, effect_sizes
 from .errors import SeedOverlapError, WelchInputError, check_alpha
 from .multitest import GlobalTest, bonferroni, bonferroni_p, combine_channels, global_test
 from .permutation import needs_resampling, permutation_max_t
+from .pixels import MIN_PIXEL_DF, PixelUse, pixel_use, pixel_welch
 from .tiles import TileStats
 from .ttest import Reason, TTestResult, paired_from_stats, welch_from_stats
 from .verdict import Verdict
@@ -38,6 +39,7 @@ __all__ = [
     "compare",
     "identical_passes_of",
     "paired_differences",
+    "pixel_share",
     "scale_factors",
     "seed_relation",
     "selftest",
@@ -107,6 +109,7 @@ class Comparison:
     uncovered: np.ndarray | None = None
     outcome: Outcome | None = None
     tested: TileTest | None = None  # the tile test this scale's statistics come from
+    pixel_use: PixelUse | None = None  # whether tiles were tested by their pixel variances, and why
 
     @property
     def verdict(self) -> Verdict:
@@ -193,6 +196,8 @@ class TileTest:
     unpaired: np.ndarray | None = None
     #: paired runs: the tile-channels whose per-pass differences are mostly exact zeros (`SPARSE_SHARE`)
     sparse: np.ndarray | None = None
+    #: the tile-channels tested by their pixel variances (`welch_core.pixels`); None where the test did not run
+    pixel: np.ndarray | None = None
 
     @property
     def welch(self) -> np.ndarray | bool:
@@ -222,9 +227,15 @@ def scale_factors(run: TileStats, tile: int | None = None) -> list[int]:
 SPARSE_SHARE = 0.5
 
 
-def test_tiles(ref: TileStats, test: TileStats, kind: str, pvalue_method: str = "exact") -> TileTest:
+def test_tiles(
+    ref: TileStats, test: TileStats, kind: str, pvalue_method: str = "exact", pixels: bool = False
+) -> TileTest:
     """Welch's test (disjoint seeds) or the paired test (identical seeds) per tile and channel, with the
     normality check of the Welch samples (of each side, or of the per-pass differences).
+
+    With `pixels` (unpaired runs that keep pixel moments, see `welch_core.pixels`): each tile-channel whose pixel
+    test has at least `MIN_PIXEL_DF` degrees of freedom takes that test's result instead (its variance from the
+    pixels); the others keep Welch's test on the tile sums.
 
     Paired runs: where the per-pass differences are clearly not normal but each side's own samples are (a change
     that alters a few light paths: differences exactly zero in most passes and large in a few), the tile-channel
@@ -260,7 +271,15 @@ def test_tiles(ref: TileStats, test: TileStats, kind: str, pvalue_method: str = 
         ref.mean, ref.variance, ref.n, test.mean, test.variance, test.n, pvalue_method=pvalue_method
     )
     checked = min(ref.n, test.n) >= MIN_PASSES_FOR_NORMALITY
-    return TileTest(kind, result, own, checked, ref.mean, ref_var, -ref_var)
+    if not pixels:
+        return TileTest(kind, result, own, checked, ref.mean, ref_var, -ref_var)
+    by_pixels = pixel_welch(ref, test, pvalue_method)
+    with np.errstate(invalid="ignore"):
+        use = (by_pixels.reason == Reason.VALID) & (by_pixels.df >= MIN_PIXEL_DF)
+    fields = (f.name for f in dataclasses.fields(TTestResult))
+    result = TTestResult(**{f: np.where(use, getattr(by_pixels, f), getattr(result, f)) for f in fields})
+    ref_var = np.where(use, ref.pixel_terms()[0] / ref.n, ref_var)
+    return TileTest(kind, result, own, checked, ref.mean, ref_var, -ref_var, pixel=use)
 
 
 def paired_differences(ref: TileStats, test: TileStats) -> TileStats:
@@ -304,6 +323,7 @@ def compare(
     tile: int | None = None,
     tolerance: float | None = None,
     equivalence_tile: int | None = None,
+    pixel_variance: str = "off",
 ) -> Comparison:
     """Test whether `test` converges to the same image as `ref`, per tile at every scale and as a whole.
 
@@ -324,6 +344,9 @@ def compare(
         of the finest tested scale is within it.
     equivalence_tile : int, optional
         Claim `equivalent` at this coarser tile size instead (one of the tested scales).
+    pixel_variance : {"off", "auto", "on"}
+        Test tiles by their pixels' variances where the runs allow it (`welch_core.pixels`): "auto" where their
+        records prove independent pixels, "on" where the user vouches for the renderer.
 
     Returns
     -------
@@ -341,7 +364,8 @@ def compare(
     ref.same_grid(test)
     kind = choose_test(ref, test, test_kind)
     identical = identical_passes_of(ref, test, kind)
-    scales, tests, runs, uncovered = assess_scales(ref, test, kind, pvalue_method, alpha, tile)
+    use = pixel_use(ref, test, kind, pixel_variance)
+    scales, tests, runs, uncovered = assess_scales(ref, test, kind, pvalue_method, alpha, tile, use.used)
     claim = check_claim_tile(equivalence_tile, scales, tolerance)
     count = len(scales)
     with np.errstate(invalid="ignore"):
@@ -372,7 +396,18 @@ def compare(
     finest = scales[0]
     if outcome.deterministic:
         p_value = 0.0
-    return dataclasses.replace(finest, p_value=p_value, scales=scales, uncovered=uncovered, outcome=outcome)
+    use = pixel_share(use, tests[0])
+    return dataclasses.replace(
+        finest, p_value=p_value, scales=scales, uncovered=uncovered, outcome=outcome, pixel_use=use
+    )
+
+
+def pixel_share(use: PixelUse, finest: TileTest) -> PixelUse:
+    """`use` with the share of the finest scale's valid tile-channels the pixel test decided."""
+    if finest.pixel is None:
+        return use
+    valid = finest.result.reason == Reason.VALID
+    return dataclasses.replace(use, share=float(finest.pixel[valid].mean()) if valid.any() else 0.0)
 
 
 def selftest(ref: TileStats, alpha: float = 0.01) -> Comparison | None:
@@ -407,16 +442,18 @@ def check_claim_tile(equivalence_tile, scales, tolerance) -> int | None:
     return int(equivalence_tile)
 
 
-def assess_scales(ref: TileStats, test: TileStats, kind: str, pvalue_method: str, alpha: float, tile=None):
+def assess_scales(
+    ref: TileStats, test: TileStats, kind: str, pvalue_method: str, alpha: float, tile=None, pixels: bool = False
+):
     """Every scale tested on its own: (the scales' comparisons, their tile tests, their (reference, test) runs,
-    the finest tiles no scale can test). `compare` and the looks decide from them."""
+    the finest tiles no scale can test). `compare` and the looks decide from them; `pixels`: see `test_tiles`."""
     tests, scales, runs = [], [], []
     a, b, done = ref, test, 1
     for f in scale_factors(ref, tile):  # one scale at a time from the one before (factors 1, 2, 4, ...)
         if f != done:
             a, b, done = a.retile(f // done), b.retile(f // done), f
         runs.append((a, b))
-        tests.append(test_tiles(a, b, kind, pvalue_method))
+        tests.append(test_tiles(a, b, kind, pvalue_method, pixels))
         scales.append(_scale(a, b, tests[-1], pvalue_method, alpha))
     return tuple(scales), tests, runs, _uncovered(scales[0], scales)
 

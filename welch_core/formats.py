@@ -15,6 +15,8 @@ pixel_sum      float32 (h, w, c), optional     per-pixel sum over the passes, to
 preview_sum    float32 (h/f, w/f, c), optional pixel_sum in block means of f x f pixels, the smallest f that
                                                brings the longer side to `PREVIEW_SIDE` or less; stored with
                                                pixel_sum where the image is larger (the report reads it alone)
+pixel_mean     float64 (h, w, c), optional     each pixel's mean over the passes, and its M2 (the sum of
+pixel_m2       float64 (h, w, c), optional     squared deviations): the pixel-variance test (`pixels`)
 =============  ==============================  ===========================================================
 
 Version 1 files (which also stored a mean and M2, and a mean image instead of the pixel sum) are still read;
@@ -23,7 +25,8 @@ its right and bottom edges (``"edges": "partial"`` in the metadata): such files 
 an earlier version would take their grid for one without those tiles. Files of earlier versions have no edge
 tiles (``edges="dropped"``: the strip no whole tile covers is untested).
 
-Loading reads only these keys, checks every header (dtype, shape, size against the metadata and against the
+A reader of an earlier version ignores the pixel moments (they add nothing it needs), so files with them keep
+their version. Loading reads only these keys, checks every header (dtype, shape, size against the metadata and against the
 bytes in the file) before allocating, and checks the content against itself; any failure is a
 `StatsFileError` with one line that names the file.
 """
@@ -43,6 +46,7 @@ import numpy as np
 
 from .colormap import shrink
 from .errors import StatsFileError, WelchInputError
+from .pixels import PixelMoments
 from .tiles import MAX_IMAGE_SIDE, RunInfo, TileStats
 
 __all__ = [
@@ -158,6 +162,8 @@ def save_stats(path: str | os.PathLike, stats: TileStats, layers: dict[str, Tile
         arrays["pixel_sum"] = stats.pixel_sum
         if max(stats.height, stats.width) > PREVIEW_SIDE:
             arrays["preview_sum"] = shrink(stats.pixel_sum, PREVIEW_SIDE)
+    if stats.pixels is not None:
+        arrays["pixel_mean"], arrays["pixel_m2"] = stats.pixels.mean, stats.pixels.m2
     for index, layer in enumerate(layers.values()):
         arrays[f"layer{index}_sums"] = layer.sums
         if layer.pixel_sum is not None:
@@ -385,7 +391,17 @@ class _Reader:
             self.check_version1_moments(sums, grid)
         elif pixels:
             pixel_sum = self.array("pixel_sum", "f", (height, width, channels), required=False)
-        return TileStats.from_sums(sums, seeds.tolist(), height, width, tile, info, pixel_sum, edges)
+        moments = self.pixel_moments(len(seeds), (height, width, channels)) if version > 1 else None
+        return TileStats.from_sums(sums, seeds.tolist(), height, width, tile, info, pixel_sum, edges, pixels=moments)
+
+    def pixel_moments(self, n: int, shape: tuple) -> PixelMoments | None:
+        if "pixel_mean" not in self.members and "pixel_m2" not in self.members:
+            return None
+        mean, m2 = (self.array(key, "f", shape) for key in ("pixel_mean", "pixel_m2"))
+        try:
+            return PixelMoments.of(mean, m2, n)
+        except WelchInputError as exc:
+            raise self.fail(str(exc)) from None
 
     def scalar_or_none(self, key: str, kinds: str):
         try:

@@ -52,11 +52,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .comparison import TileTest, assess_scales, check_claim_tile, choose_test, identical_passes_of, test_tiles
+from .comparison import (
+    TileTest,
+    assess_scales,
+    check_claim_tile,
+    choose_test,
+    identical_passes_of,
+    pixel_share,
+    test_tiles,
+)
 from .decision import Evidence, Outcome, decide
 from .errors import WelchInputError, check_alpha, check_int
 from .multitest import bonferroni
 from .permutation import needs_resampling, permutation_max_t
+from .pixels import PIXEL_MODES, PixelUse, pixel_use
 from .sequential import SPENDING, boundaries, nominal_levels
 from .tiles import TileStats
 from .ttest import Reason, pvalue_exact
@@ -107,6 +116,7 @@ class SequentialPlan:
     reserve: float = EXTENSION_RESERVE  # the share of alpha kept for looks past max_passes (a grown budget)
     early_share: float = EARLY_SHARE  # the share of each `biased` level spent by the early design (0: none)
     futility: bool = True  # stop `inconclusive` once `equivalent` is out of the budget's reach (`decision`)
+    pixel_variance: str = "off"  # test tiles by their pixels' variances where allowed (`welch_core.pixels`)
 
     def __post_init__(self):
         check_int("max_passes", self.max_passes, minimum=FIRST_LOOK)
@@ -119,6 +129,8 @@ class SequentialPlan:
             raise WelchInputError(f"`reserve` must lie in [0, 1), got {self.reserve!r}")
         if not 0 <= self.early_share < 1:
             raise WelchInputError(f"`early_share` must lie in [0, 1), got {self.early_share!r}")
+        if self.pixel_variance not in PIXEL_MODES:
+            raise WelchInputError(f"`pixel_variance` must be one of {PIXEL_MODES}, got {self.pixel_variance!r}")
 
     @property
     def early(self) -> float:
@@ -172,6 +184,7 @@ class Look:
     p_value: float  # the most significant tested tile-channel's p-value...
     threshold: float  # ...and the nominal level it had to reach at this look (at its scale)
     crossed: int  # tile-channels past their boundary
+    pixel_use: PixelUse | None = None  # whether tiles were tested by their pixel variances, and why
 
     @property
     def verdict(self) -> Verdict | None:
@@ -202,10 +215,12 @@ def conservative(tested: TileTest, n: int) -> TileTest:
     real-valued nu: a boundary's level is far out in the tail, where nu overstates the evidence of small runs
     with unequal variances (at n = 10 a side, variances 1:9 and normal samples, the 3e-4 tail is 1.7x its
     nominal size; with n - 1, at most 1.14x for skewness up to 0.5, measured). A paired test already has n - 1:
-    its p-values are unchanged."""
+    its p-values are unchanged. Tile-channels tested by their pixel variances keep their df (at least
+    `pixels.MIN_PIXEL_DF`; calibrated under the looks: docs/findings/pixel_variance.md)."""
     result = tested.result
     valid = result.reason == Reason.VALID
-    df = np.where(valid, n - 1.0, np.nan)
+    by_pixels = tested.pixel if tested.pixel is not None else False
+    df = np.where(valid, np.where(by_pixels, result.df, n - 1.0), np.nan)
     pvalue = np.where(valid, pvalue_exact(result.statistic, df), np.nan)
     return dataclasses.replace(tested, result=dataclasses.replace(result, df=df, pvalue=pvalue))
 
@@ -282,7 +297,8 @@ def sequential_look(
     ref.same_grid(test)
     kind = choose_test(ref, test, plan.test_kind)
     identical = identical_passes_of(ref, test, kind)
-    scales, tests, runs, uncovered = assess_scales(ref, test, kind, "exact", plan.alpha)
+    use = pixel_use(ref, test, kind, plan.pixel_variance)
+    scales, tests, runs, uncovered = assess_scales(ref, test, kind, "exact", plan.alpha, pixels=use.used)
     whole = test_tiles(ref.whole(), test.whole(), kind)
     n = min(ref.n, test.n)
     if any(np.any(t.welch) for t in (*tests, whole)):  # Welch's test somewhere (a paired run's sparse tiles too)
@@ -339,6 +355,7 @@ def sequential_look(
         p_value=best[1],
         threshold=best[2],
         crossed=crossed,
+        pixel_use=pixel_share(use, tests[0]),
     )
 
 

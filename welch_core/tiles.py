@@ -26,6 +26,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import GridMismatchError, RunMismatchError, WelchInputError, check_int
+from .pixels import PixelMoments, pixel_terms
 
 __all__ = ["EDGES", "MAX_IMAGE_SIDE", "MAX_SPP", "RunInfo", "TileStats", "grid_size", "tile_row_blocks", "tile_sums"]
 
@@ -216,6 +217,8 @@ class TileStats:
         What produced the passes.
     keep_mean_image : bool
         Also keep the per-pixel mean image (for display over the p-value map).
+    keep_pixel_moments : bool
+        Also keep each pixel's mean and M2 over the passes (`pixels`), for the pixel-variance test.
     """
 
     def __init__(
@@ -228,6 +231,7 @@ class TileStats:
         keep_mean_image: bool = True,
         edges: str = "partial",
         covered: tuple[int, int] | None = None,
+        keep_pixel_moments: bool = False,
     ):
         self.height = check_int("height", height, maximum=MAX_IMAGE_SIDE)
         self.width = check_int("width", width, maximum=MAX_IMAGE_SIDE)
@@ -252,6 +256,10 @@ class TileStats:
         self._moments: tuple[int, np.ndarray, np.ndarray] | None = None  # (count, mean, m2), derived from sums
         # float32 is enough for an image that is only displayed, and keeps add_pass near memory speed.
         self._pixel_sum = np.zeros((self.height, self.width, self.channels), np.float32) if keep_mean_image else None
+        #: each pixel's moments over the passes (`welch_core.pixels`), where kept: a run of other passes (a subset,
+        #: the whole image's channel sum) has none
+        self.pixels = PixelMoments(self.height, self.width, self.channels) if keep_pixel_moments else None
+        self._terms: tuple[int, np.ndarray, np.ndarray] | None = None
 
     @classmethod
     def from_sums(
@@ -265,13 +273,15 @@ class TileStats:
         pixel_sum: np.ndarray | None = None,
         edges: str = "partial",
         covered: tuple[int, int] | None = None,
+        pixels: PixelMoments | None = None,
     ) -> TileStats:
         """Statistics built from per-pass tile sums of shape (n, tiles_y, tiles_x, channels): the constructor for
         loaders and derived runs. A C-contiguous float64 array is used as it is (not copied): don't change it
         afterwards.
 
         `pixel_sum`, if given, is the per-pixel sum over the passes (H×W×channels), from which the mean image is
-        shown. `edges` and `covered` say how the tiles meet the image's edges (see `TileStats`).
+        shown. `edges` and `covered` say how the tiles meet the image's edges (see `TileStats`); `pixels` are the
+        passes' per-pixel moments (checked to be of these passes' count and image).
         """
         sums = np.asarray(sums, dtype=np.float64)
         if sums.ndim != 4:
@@ -289,6 +299,13 @@ class TileStats:
                     f"`pixel_sum` must have shape {(height, width, out.channels)}, got {pixel_sum.shape}"
                 )
             out._pixel_sum = pixel_sum if adopt else pixel_sum.copy()  # adopted like the sums: one copy in memory
+        if pixels is not None:
+            if pixels.shape != (height, width, out.channels) or pixels.n != out.n:
+                raise WelchInputError(
+                    f"`pixels` must be the moments of {out.n} passes of {(height, width, out.channels)}, got "
+                    f"{pixels.n} of {pixels.shape}"
+                )
+            out.pixels = pixels
         return out
 
     # -- shape of the grid ---------------------------------------------------------------------------------
@@ -363,6 +380,15 @@ class TileStats:
             return None
         return self.pixel_sum / np.float32(self._count)
 
+    def pixel_terms(self) -> tuple[np.ndarray, np.ndarray]:
+        """V = sum_p s_p² and Q = sum_p (s_p²)² per tile-channel from the pixel moments (`welch_core.pixels`)."""
+        if self.pixels is None:
+            raise WelchInputError("this run keeps no pixel moments")
+        if self._terms is None or self._terms[0] != self._count:
+            v, q = pixel_terms(self.pixels, self.tile, (self.tiles_y, self.tiles_x), self.covered)
+            self._terms = (self._count, v, q)
+        return self._terms[1], self._terms[2]
+
     def _derived_moments(self) -> tuple[np.ndarray, np.ndarray]:
         if self._moments is None or self._moments[0] != self._count:
             sums = self.sums
@@ -430,6 +456,8 @@ class TileStats:
             bad = int((~np.isfinite(image[..., : self.channels])).sum())
             raise WelchInputError(f"pass with seed {seed} has {bad} non-finite pixel values")
         self._append(sums[None], [seed])
+        if self.pixels is not None:
+            self.pixels.add(image)
         if self._pixel_sum is not None:
             if self._count == 1 and self._pixel_sum.shape != image.shape:
                 # Sum all of the pass's channels (alpha too): a contiguous add is 5x faster than a strided one.
@@ -439,9 +467,12 @@ class TileStats:
             else:
                 self._pixel_sum[..., : self.channels] += image[..., : self.channels]
 
-    def add_sums(self, sums: npt.ArrayLike, seeds, pixel_sum: np.ndarray | None = None) -> None:
+    def add_sums(
+        self, sums: npt.ArrayLike, seeds, pixel_sum: np.ndarray | None = None, pixels: PixelMoments | None = None
+    ) -> None:
         """Add passes given as tile sums (n, tiles_y, tiles_x, channels), e.g. from a worker process, with the
-        per-pixel sum over those passes when the mean image is kept. All or nothing."""
+        per-pixel sum over those passes when the mean image is kept, and their pixel moments where this run keeps
+        them (without, the run keeps none from now on). All or nothing."""
         sums = np.asarray(sums, dtype=np.float64)
         seeds = _check_seeds(seeds, self.seeds)
         if sums.shape != (len(seeds), *self.grid_shape):
@@ -453,6 +484,10 @@ class TileStats:
             if pixel_sum.shape[:2] != (self.height, self.width) or pixel_sum.shape[2] < self.channels:
                 raise WelchInputError(f"`pixel_sum` must be {self.height}x{self.width}, got {pixel_sum.shape}")
             self._pixel_sum[..., : self.channels] += pixel_sum[..., : self.channels]
+        if self.pixels is not None:
+            if pixels is not None and pixels.n != len(seeds):
+                raise WelchInputError(f"`pixels` must be the moments of {len(seeds)} passes, got {pixels.n}")
+            self.pixels = self.pixels.merged(pixels) if pixels is not None else None
         self._append(sums, seeds)
 
     def _append(self, sums: np.ndarray, seeds: list[int]) -> None:
@@ -478,6 +513,8 @@ class TileStats:
         _check_seeds(other.seeds, self.seeds)
         keep = self._pixel_sum is not None and other._pixel_sum is not None
         pixel_sum = self.pixel_sum + other.pixel_sum if keep else None
+        both = self.pixels is not None and other.pixels is not None
+        pixels = self.pixels.merged(other.pixels) if both else None
         return TileStats.from_sums(
             np.concatenate([self.sums, other.sums]),
             self.seeds + other.seeds,
@@ -488,6 +525,7 @@ class TileStats:
             pixel_sum,
             self.edges,
             self.covered,
+            pixels,
         )
 
     # -- derived runs --------------------------------------------------------------------------------------
@@ -513,7 +551,7 @@ class TileStats:
 
     def retile(self, factor: int) -> TileStats:
         """The statistics at tile size `tile * factor`, from the stored per-pass sums (no re-rendering); the mean
-        image is not kept."""
+        image is not kept, the pixel moments are (they are the same passes' pixels)."""
         factor = check_int("factor", factor)
         tile = self.tile * factor
         if factor > 1 and max(self.tiles_y, self.tiles_x) <= factor // 2:  # half the factor covers it all already
@@ -534,8 +572,9 @@ class TileStats:
             columns[:, : self.tiles_x] = strip
             sums[:, ty] = columns.reshape(n, sums.shape[2], f, c).sum(axis=2)
         return TileStats.from_sums(
-            sums, self.seeds, self.height, self.width, tile, self.info, edges=self.edges, covered=self.covered
-        )
+            sums, self.seeds, self.height, self.width, tile, self.info, edges=self.edges, covered=self.covered,
+            pixels=self.pixels,
+        )  # fmt: skip
 
     def whole(self) -> TileStats:
         """The whole image as one Welch sample a pass: every tile and channel summed (one tile, one channel)."""

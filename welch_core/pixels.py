@@ -1,0 +1,264 @@
+"""A tile's variance from its pixels: the pixel-variance test, where a renderer's pixels are independent.
+
+The tile test estimates Var(tile sum) from the n tile sums of each side: n - 1 degrees of freedom, so at 2-4
+passes a side its critical values are enormous. Cycles samples every pixel on its own (filter importance sampling,
+no splatting, a scrambled sequence per pixel), so where the pixels of a pass are independent
+
+    Var(tile sum) = sum over the tile's pixels p of Var(pixel p)                                       (1)
+
+and each pixel's sample variance s_p² over the passes estimates its term. Per tile-channel, with m the side's mean
+tile sum and V = sum_p s_p² (`PixelMoments` keeps each pixel's mean and M2, streaming and mergeable):
+
+    t = (m_test - m_ref) / sqrt(V_ref / n_ref + V_test / n_test)                                    (2)
+    df = (V_ref / n_ref + V_test / n_test)² / sum_sides (Q / (n² (n - 1))),  Q = sum_p (s_p²)²        (3)
+
+(3) is Satterthwaite's for a sum of independent variance estimates, each with n - 1 degrees of freedom: up to
+tile² (n - 1), so at n = 2 the critical value is nearly normal instead of that of a t with one degree of freedom.
+
+Hypothesis and family: per tile-channel H0 is that the two sides' expected tile sums are equal, as for the tile
+test; the pixel test replaces the tile test's p-value of a tile-channel and the family (`comparison`, `looks`) is
+unchanged. Its assumption, (1), is not tested by the data at a few passes, so it is used only where the run's own
+record proves the settings under which it was measured (`pixel_eligibility`), and refused where the data contradict it
+grossly (`tripwire`). Where (3) is small the tile's pixels are skewed (a few pixels carry the tile) and
+Satterthwaite's df, which assumes normal pixels, overstates the evidence: below `MIN_PIXEL_DF` a tile-channel
+keeps the tile test (measured: docs/findings/pixel_variance.md).
+
+numpy only (scipy where a p-value is computed): the moments are accumulated inside a stock Blender.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from .errors import WelchInputError
+from .ttest import Reason, TTestResult, pvalue_exact, welch_from_stats
+
+__all__ = [
+    "INDEPENDENT_PATTERNS",
+    "MIN_PIXEL_DF",
+    "PIXEL_MODES",
+    "TRIPWIRE_RATIO",
+    "PixelMoments",
+    "PixelUse",
+    "pixel_eligibility",
+    "pixel_terms",
+    "pixel_use",
+    "pixel_welch",
+    "tripwire",
+]
+
+#: Below this Satterthwaite df (3) a tile-channel keeps the tile test: skewed pixels (measured: at 2 v 2 the
+#: glass caustic's false `biased` rate fell from 21 to 6 in 1000 with it).
+MIN_PIXEL_DF = 100.0
+
+#: "auto": where the runs' records prove the settings (`pixel_eligibility`); "on": the user vouches for the renderer
+#: (an external one, or settings not measured), the tripwire still refuses; "off": the tile test everywhere.
+PIXEL_MODES = ("auto", "on", "off")
+
+#: (Blender release, sampling pattern) whose pixels were measured independent or negatively correlated within a
+#: pass: D = Var(tile sum) / sum Var(pixel) within its permutation null or below it, on the built-in scenes and the
+#: glass caustic (docs/findings/pixel_variance.md). Extend only by measurement.
+INDEPENDENT_PATTERNS = {
+    ("5.0", "TABULATED_SOBOL"),
+    ("5.0", "BLUE_NOISE"),
+    ("5.0", "AUTOMATIC"),  # renders the passes of BLUE_NOISE in 5.0
+}
+
+#: The tripwire's limit on the median over tile-channels of (tile-sum variance / V), each divided by the median
+#: of its null distribution chi²(n - 1) / (n - 1): independent pixels give about 1, the scrambling distance 0.1
+#: about 100 (`tripwire`).
+TRIPWIRE_RATIO = 3.0
+
+
+class PixelMoments:
+    """Each pixel's mean and M2 (sum of squared deviations) over a run's passes, float64, H×W×C.
+
+    Updated pass by pass (Welford) and merged exactly (Chan et al.), so a resumed or merged run has the moments
+    of all its passes at once; float64 keeps a bright pixel's variance where its mean is large.
+    """
+
+    def __init__(self, height: int, width: int, channels: int = 3):
+        self.n = 0
+        self.mean = np.zeros((height, width, channels))
+        self.m2 = np.zeros((height, width, channels))
+        self._scratch: tuple[np.ndarray, np.ndarray] | None = None
+
+    @classmethod
+    def of(cls, mean: npt.ArrayLike, m2: npt.ArrayLike, n: int) -> PixelMoments:
+        """Moments read back (a statistics file) or computed elsewhere; checked."""
+        mean, m2 = np.asarray(mean, dtype=np.float64), np.asarray(m2, dtype=np.float64)
+        if mean.ndim != 3 or mean.shape != m2.shape:
+            raise WelchInputError(f"pixel moments must be two H×W×C arrays, got {mean.shape} and {m2.shape}")
+        if not (np.isfinite(m2).all() and (m2 >= 0).all()):
+            raise WelchInputError("pixel M2 must be finite and >= 0")
+        out = cls(*mean.shape)
+        out.n, out.mean, out.m2 = int(n), mean, m2
+        return out
+
+    @classmethod
+    def of_passes(cls, images: npt.ArrayLike, channels: int = 3) -> PixelMoments:
+        """The moments of a stack of passes (n, H, W, C) at once: the oracle the streaming path must equal."""
+        images = np.asarray(images, dtype=np.float64)[..., :channels]
+        if len(images) == 0:
+            return cls(*images.shape[1:])
+        mean = images.mean(axis=0)
+        return cls.of(mean, ((images - mean) ** 2).sum(axis=0), len(images))
+
+    @property
+    def shape(self) -> tuple[int, int, int]:
+        return self.mean.shape
+
+    def add(self, image: np.ndarray) -> None:
+        """Add one pass (H×W×C or more channels; the first C are used)."""
+        x = np.asarray(image)[..., : self.shape[2]]
+        if self._scratch is None:  # two buffers kept between passes: no allocation per pass
+            self._scratch = (np.empty(self.shape), np.empty(self.shape))
+        delta, step = self._scratch
+        self.n += 1
+        np.subtract(x, self.mean, out=delta)
+        np.multiply(delta, delta, out=step)  # Welford: M2 grows by delta² (n - 1) / n, the mean by delta / n
+        step *= (self.n - 1) / self.n
+        self.m2 += step
+        delta /= self.n
+        self.mean += delta
+
+    def merged(self, other: PixelMoments) -> PixelMoments:
+        """The moments of both runs' passes together (neither changes)."""
+        if self.shape != other.shape:
+            raise WelchInputError(f"pixel moments of different images: {self.shape} and {other.shape}")
+        n = self.n + other.n
+        if not self.n or not other.n:
+            source = self if self.n else other
+            return PixelMoments.of(source.mean.copy(), source.m2.copy(), source.n)
+        delta = other.mean - self.mean
+        mean = self.mean + delta * (other.n / n)
+        m2 = self.m2 + other.m2 + delta**2 * (self.n * other.n / n)
+        return PixelMoments.of(mean, m2, n)
+
+    def variance(self) -> np.ndarray:
+        """Each pixel's unbiased sample variance (NaN where n < 2)."""
+        if self.n < 2:
+            return np.full(self.shape, np.nan)
+        return self.m2 / (self.n - 1)
+
+
+def pixel_terms(moments: PixelMoments, tile: int, grid: tuple[int, int], covered: tuple[int, int]):
+    """V = sum_p s_p² and Q = sum_p (s_p²)² per tile-channel of a `grid` of `tile`-pixel tiles over the `covered`
+    pixels (the right and bottom tiles partial where the tile does not divide them), as in (1) and (3)."""
+    from .tiles import tile_sums  # tiles imports this module
+
+    s2 = moments.variance()[: covered[0], : covered[1]]
+    v = tile_sums(s2, tile, s2.shape[2])
+    q = tile_sums(s2 * s2, tile, s2.shape[2])
+    if v.shape[:2] != tuple(grid):
+        raise WelchInputError(f"pixel moments give a {v.shape[:2]} grid, the run has {tuple(grid)}")
+    return v, q
+
+
+def pixel_welch(ref, test, pvalue_method: str = "exact") -> TTestResult:
+    """(2) and (3) per tile-channel of two runs (`TileStats` with `pixels`), as a `TTestResult`: the reasons of
+    Welch's test on the tile sums (a constant tile has zero pixel variances too)."""
+    v_ref, q_ref = ref.pixel_terms()
+    v_test, q_test = test.pixel_terms()
+    result = welch_from_stats(ref.mean, v_ref, ref.n, test.mean, v_test, test.n, pvalue_method=pvalue_method)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a, b = v_ref / ref.n, v_test / test.n
+        df = (a + b) ** 2 / (q_ref / (ref.n**2 * (ref.n - 1.0)) + q_test / (test.n**2 * (test.n - 1.0)))
+    valid = result.reason == Reason.VALID
+    df = np.where(valid, df, np.nan)
+    p = np.where(valid, pvalue_exact(result.statistic, df), np.nan)
+    return dataclasses.replace(result, df=df, pvalue=p)
+
+
+def tripwire(ref, test) -> float:
+    """How much more the tile sums vary than their pixels say, pooled over both sides: the median over valid
+    tile-channels of s²(tile sums) / V, divided by the median of chi²(n - 1) / (n - 1) (what independent normal
+    pixels give). About 1 where (1) holds, below where pixels are negatively correlated; gross positive
+    correlation (the scrambling distance 0.1: about 100) shows at 2 passes a side. NaN with nothing to measure."""
+    from scipy import stats as scipy_stats
+
+    ratios = []
+    for run in (ref, test):
+        if run.n < 2:
+            continue
+        v, _ = run.pixel_terms()
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r = run.variance / v
+        r = r[np.isfinite(r) & (v > 0)]
+        if r.size:
+            ratios.append(r / (scipy_stats.chi2.median(run.n - 1) / (run.n - 1)))
+    return float(np.median(np.concatenate(ratios))) if ratios else float("nan")
+
+
+@dataclass(frozen=True)
+class PixelUse:
+    """Whether a comparison tested tiles by their pixel variances, and why (or why not), for the report."""
+
+    mode: str  # one of PIXEL_MODES
+    used: bool
+    reason: str  # one line: what allowed it, or what stopped it
+    share: float = 0.0  # of the finest scale's valid tile-channels that the pixel test decided
+    ratio: float = float("nan")  # the tripwire's measure
+
+    def to_json(self) -> dict:
+        return {"mode": self.mode, "used": self.used, "reason": self.reason, "share": self.share,
+                "tripwire": None if not np.isfinite(self.ratio) else self.ratio}  # fmt: skip
+
+
+def pixel_eligibility(info) -> str | None:
+    """Why a run's record does not prove independent pixels (one line), or None where it does: Cycles passes
+    rendered by this tool (a built-in scene or a .blend it hashed, not `ingest` or `--command`), of a (release,
+    sampling pattern) in `INDEPENDENT_PATTERNS`, scrambling distance 1 and the automatic one off (it changes
+    nothing at 1 spp), no denoiser, no adaptive sampling."""
+    if info.renderer != "Cycles" or not info.scene_id.startswith(("builtin:", "sha256:")):
+        return "not Cycles passes rendered by this tool (vouch for the renderer with --pixel-variance on)"
+    release = ".".join(info.renderer_version.split(".")[:2])
+    if (release, info.sampling_pattern) not in INDEPENDENT_PATTERNS:
+        return f"the sampling pattern {info.sampling_pattern} of Blender {release} is not measured independent"
+    settings = info.settings
+    distance = settings.get("cycles.scrambling_distance")
+    if distance != 1.0:
+        return f"cycles.scrambling_distance is {distance} (pixels share samples below 1)"
+    if settings.get("cycles.auto_scrambling_distance") and info.spp > 1:
+        return "cycles.auto_scrambling_distance is on (pixels share samples)"
+    switches = [k for k in settings if k.endswith("cycles.use_denoising")] + ["cycles.use_adaptive_sampling"]
+    for name in switches:
+        if settings.get(name, True):
+            return f"{name} is on"
+    return None
+
+
+def pixel_use(ref, test, kind: str, mode: str) -> PixelUse:
+    """Whether `ref` and `test` (`TileStats`) are tested by their pixel variances under `mode` (see
+    `PIXEL_MODES`), and why: the runs must keep pixel moments, be unpaired (the paired design would need each
+    pixel's difference per seed, which neither run's moments hold), have two passes a side, be eligible by their
+    records (`pixel_eligibility`, unless the user vouches with "on"), and pass the `tripwire`."""
+    if mode not in PIXEL_MODES:
+        raise WelchInputError(f"`pixel_variance` must be one of {PIXEL_MODES}, got {mode!r}")
+    if mode == "off":
+        return PixelUse(mode, False, "off (--pixel-variance off)")
+    if kind != "welch":
+        return PixelUse(
+            mode, False, "the paired design needs each pixel's difference per seed, which the runs do not keep"
+        )
+    if ref.pixels is None or test.pixels is None:
+        return PixelUse(
+            mode, False, "a run keeps no pixel moments (ingested, rendered on workers or before they were kept)"
+        )
+    if min(ref.n, test.n) < 2:
+        return PixelUse(mode, False, "fewer than 2 passes a side")
+    if mode == "auto":
+        for side, run in (("reference", ref), ("test", test)):
+            reason = pixel_eligibility(run.info)
+            if reason is not None:
+                return PixelUse(mode, False, f"the {side}: {reason}")
+    ratio = tripwire(ref, test)
+    if ratio > TRIPWIRE_RATIO:
+        return PixelUse(mode, False, f"refused: the tile sums vary {ratio:.3g}x more than their pixels say (pixels "
+                        "correlated within a pass)", ratio=ratio)  # fmt: skip
+    why = "vouched for (--pixel-variance on)" if mode == "on" else "Cycles passes with independent pixels"
+    return PixelUse(mode, True, why, ratio=ratio)
