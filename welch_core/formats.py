@@ -26,8 +26,8 @@ an earlier version would take their grid for one without those tiles. Files of e
 tiles (``edges="dropped"``: the strip no whole tile covers is untested).
 
 A reader of an earlier version ignores the pixel moments (they add nothing it needs), so files with them keep
-their version. Loading reads only these keys, checks every header (dtype, shape, size against the metadata and against the
-bytes in the file) before allocating, and checks the content against itself; any failure is a
+their version. Loading reads only these keys, checks every header (dtype, shape, size against the metadata and
+against the bytes in the file) before allocating, and checks the content against itself; any failure is a
 `StatsFileError` with one line that names the file.
 """
 

@@ -109,7 +109,7 @@ def _start(job: RenderJob, size, info: wc.RunInfo, scene) -> tuple[wc.TileStats,
         from . import render  # imports bpy: layers are Cycles'
 
         names = render.layer_names(scene, job.lobes)
-    fresh = wc.TileStats(height, width, job.tile, 3, info)
+    fresh = wc.TileStats(height, width, job.tile, 3, info, keep_pixel_moments=True)  # the pixel-variance test
     stats, layers = resumed(job, fresh)
     if stats is fresh:
         return stats, {name: _like(stats) for name in names}
@@ -118,9 +118,10 @@ def _start(job: RenderJob, size, info: wc.RunInfo, scene) -> tuple[wc.TileStats,
     return stats, layers
 
 
-def _like(stats: wc.TileStats) -> wc.TileStats:
-    """New, empty statistics of the same run as `stats`."""
-    return wc.TileStats(stats.height, stats.width, stats.tile, stats.channels, stats.info)
+def _like(stats: wc.TileStats, moments: bool = False) -> wc.TileStats:
+    """New, empty statistics of the same run as `stats` (keeping pixel moments where `moments` and it does)."""
+    keep = moments and stats.pixels is not None
+    return wc.TileStats(stats.height, stats.width, stats.tile, stats.channels, stats.info, keep_pixel_moments=keep)
 
 
 def render_run(job: RenderJob, progress: Progress, requests=None) -> wc.TileStats:
@@ -186,7 +187,7 @@ def _render_chunk(
     unknown = [seed for seed in request.seeds if seed not in allowed]
     if unknown:
         raise RunError(f"a chunk asks for seed {unknown[0]}, which is not in --seeds of this job")
-    chunk, chunk_layers = _like(like), {name: _like(like) for name in layers or {}}
+    chunk, chunk_layers = _like(like, moments=True), {name: _like(like) for name in layers or {}}
     # Saved by render_passes once it ends, however it ends (with the passes done so far on a failure or a stop).
     render_passes(renderer, request.seeds, chunk, progress, job.on_nan, request.out, len(request.seeds) + 1, stop,
                   chunk_layers)  # fmt: skip

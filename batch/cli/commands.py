@@ -128,7 +128,7 @@ def _add_check(sub) -> None:
     add_options(k, "check", ("pass_command",))
     k.add_argument("--test-command", metavar="TEMPLATE", help="the test side's command (default: --command)")
     add_options(k, "check", ("command_dir",))
-    add_options(k, "check", ("tolerance", "equivalence_tile"))
+    add_options(k, "check", ("tolerance", "equivalence_tile", "pixel_variance"))
     k.add_argument(
         "--no-futility",
         dest="futility",
@@ -197,6 +197,8 @@ def _add_compare(sub) -> None:
         )
         c.add_argument("--out", required=True, metavar="REPORT_DIR", help="folder for the report (created if missing)")
         add_options(c, name, ("tolerance", "equivalence_tile", "tile"))
+        if name == "compare":  # a selftest's halves are subsets, which keep no pixel moments
+            add_options(c, name, ("pixel_variance",))
         c.add_argument(
             "--full-maps",
             action="store_true",
@@ -438,7 +440,7 @@ def cmd_ingest(args) -> int:
     with OutputLock(args.out):
         first = wc.read_exr(args.passes[0])
         info = wc.RunInfo(spp=args.spp, renderer=args.renderer)
-        stats = wc.TileStats(first.shape[0], first.shape[1], args.tile, 3, info)
+        stats = wc.TileStats(first.shape[0], first.shape[1], args.tile, 3, info, keep_pixel_moments=True)
         layers = {name: wc.TileStats(first.shape[0], first.shape[1], args.tile, 3, info) for name in args.layers}
         progress = Progress(len(args.passes), label="ingest")
         progress.start(0, args.out)
@@ -500,6 +502,7 @@ def cmd_compare(args) -> int:
         tile=args.tile,
         tolerance=args.tolerance,
         equivalence_tile=args.equivalence_tile,
+        pixel_variance=args.pixel_variance,
         full_maps=args.full_maps,
     )
     print("\n".join(lines(report, args.out)))

@@ -60,6 +60,7 @@ class CheckJob:
     tolerance: float | None = default("tolerance", "check")
     equivalence_tile: int | None = None  # claim `equivalent` at this tile size (default: the finest)
     futility: bool = True  # stop `inconclusive` once `equivalent` is out of the budget's reach (welch_core.decision)
+    pixel_variance: str = default("pixel_variance", "check")  # the pixel-variance test (welch_core.pixels)
     resume: bool = False
     #: The reference is a finished statistics file (a suite's blessed reference), not rendered: only the test
     #: side renders, and the looks' information fractions count its passes against the reference's fixed ones.
@@ -78,6 +79,7 @@ class CheckJob:
             tolerance=self.tolerance,
             equivalence_tile=self.equivalence_tile,
             futility=self.futility,
+            pixel_variance=self.pixel_variance,
             **early,
         )
 
@@ -386,9 +388,11 @@ def _plan_difference(stored: wc.SequentialPlan, planned: wc.SequentialPlan) -> s
             return "the finest tile as the claim" if value is None else f"--equivalence-tile {value}"
         if name == "tolerance":
             return "--tolerance off" if value is None else f"--tolerance {100 * value:g}%"
+        if name == "pixel_variance":
+            return f"--pixel-variance {value}"
         return f"--{name} {value:g}"
 
-    names = ("alpha", "tolerance", "equivalence_tile", "futility")
+    names = ("alpha", "tolerance", "equivalence_tile", "futility", "pixel_variance")
     differ = [n for n in names if getattr(stored, n) != getattr(planned, n)]
     return "; ".join(f"{shown(n, getattr(stored, n))}, not {shown(n, getattr(planned, n))}" for n in differ) or (
         "another design"
@@ -521,6 +525,7 @@ class CheckRequest:
     tolerance: float | None = default("tolerance", "check")
     equivalence_tile: int | None = None
     futility: bool = True
+    pixel_variance: str = default("pixel_variance", "check")
     unpaired: bool = False
     resume: bool = False
     workers: int | None = None
@@ -621,6 +626,7 @@ def check_job(request: CheckRequest) -> CheckJob:
         tolerance=args.tolerance,
         equivalence_tile=args.equivalence_tile,
         futility=args.futility,
+        pixel_variance=args.pixel_variance,
         resume=args.resume,
         workers=args.workers,
         scheduler=args.scheduler,

@@ -104,6 +104,7 @@ class Case:
     devices: tuple[str, ...] = _default("devices")
     tolerance: float | None = _default("tolerance")  # None: the suite's
     equivalence_tile: int | None = _default("equivalence_tile")  # the tile size `equivalent` claims (default: tile)
+    pixel_variance: str = _default("pixel_variance")  # the pixel-variance test (welch_core.pixels)
     expect: str = "same"
     sampling_pattern: str | None = _default("sampling_pattern")
     test_sampling_pattern: str | None = None  # the test side's, where it differs from the reference's on purpose
@@ -510,6 +511,7 @@ def _run_case(
             alpha=suite.alpha,
             tolerance=case.tolerance,
             equivalence_tile=case.equivalence_tile,
+            pixel_variance=case.pixel_variance,
             resume=resume,
             fixed_reference=True,
         )

@@ -64,7 +64,7 @@ class Run:
         if list(arrival.layers) != list(self.layers):
             raise BatchError(f"can't resume {self.out}: it has layers {list(self.layers) or 'none'}, this run "
                              f"{list(arrival.layers) or 'none'}")  # fmt: skip
-        self.stats.add_sums(chunk.sums, chunk.seeds, chunk.pixel_sum)
+        self.stats.add_sums(chunk.sums, chunk.seeds, chunk.pixel_sum, chunk.pixels)
         for name, layer in arrival.layers.items():
             self.layers[name].add_sums(layer.sums, layer.seeds, layer.pixel_sum)
 
@@ -81,7 +81,7 @@ class Run:
 
 def _reordered(stats: wc.TileStats, order: list[int]) -> wc.TileStats:
     return wc.TileStats.from_sums(stats.sums[order], [stats.seeds[i] for i in order], stats.height, stats.width,
-                                  stats.tile, stats.info, pixel_sum=stats.pixel_sum)  # fmt: skip
+                                  stats.tile, stats.info, pixel_sum=stats.pixel_sum, pixels=stats.pixels)  # fmt: skip
 
 
 def render_loop(arrivals: Iterable[Arrival], run: Run, progress, checkpoint_every: int) -> None:

@@ -19,6 +19,7 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+from .._siblings import welch_core as wc
 from ..errors import BatchError
 from .lobes import LOBES, parse_lobes
 from .seeds import MAX_PASSES
@@ -564,6 +565,19 @@ OPTIONS = {
                 "suite": _USE,  # the suite file's [suite] tolerance
                 "addon": _USE,
             },
+        ),
+        Option(
+            "pixel_variance",
+            "--pixel-variance",
+            "pixel_variance",
+            "choice",
+            "test a tile by its pixels' variances where they are independent, far fewer passes at small counts: "
+            "auto where both runs' records prove it (Cycles passes this tool rendered, a sampling pattern measured "
+            "independent, scrambling distance 1), on to vouch for another renderer, off for the tile test "
+            "everywhere; unpaired runs only",
+            default="auto",
+            choices=wc.PIXEL_MODES,
+            uses=dict.fromkeys(("check", "compare", "case"), _USE),
         ),
         Option(
             "alpha",

@@ -84,13 +84,14 @@ def _load(ref_path: str, test_path: str, pixels: bool):
 def compare_files(ref_path: str, test_path: str, out_dir: str, *, alpha: float = default("alpha", "compare"),
                   kind: str = "auto", pvalue_method: str = "exact", tile: int | None = None,
                   tolerance: float | None = None, equivalence_tile: int | None = None,
+                  pixel_variance: str = default("pixel_variance", "compare"),
                   full_maps: bool = False) -> dict[str, Any]:  # fmt: skip
     """Load two statistics files, compare them and their layers, and report into `out_dir` (the `compare`
     command). The pixel sums are read only where full-resolution maps are asked for; the page needs the stored
     previews alone."""
     ref, test, layers = _load(ref_path, test_path, full_maps)
     previews = None if full_maps else (wc.load_preview(ref_path), wc.load_preview(test_path))
-    comparison = wc.compare(ref, test, alpha, kind, pvalue_method, tile, tolerance, equivalence_tile)
+    comparison = wc.compare(ref, test, alpha, kind, pvalue_method, tile, tolerance, equivalence_tile, pixel_variance)
     return present(out_dir, comparison, ref, test, layers=layers, previews=previews, full_maps=full_maps)
 
 
@@ -99,7 +100,7 @@ def assess_files(ref_path: str, test_path: str, alpha: float) -> tuple[Assessmen
     layers as `compare` does, the sides named by their paths, writing nothing (the Blender add-on's statistics
     files)."""
     ref, test, layers = _load(ref_path, test_path, True)
-    comparison = wc.compare(ref, test, alpha)
+    comparison = wc.compare(ref, test, alpha, pixel_variance=default("pixel_variance", "check"))
     return assess(comparison, ref, test, names=(ref_path, test_path), layers=layers), ref, test
 
 

@@ -15,7 +15,8 @@ from ..loop import Arrival
 class ChunkResult:
     """The passes of one chunk as a worker sends them back (by Dask's pickling): per-pass tile sums, shape
     (n, tiles_y, tiles_x, channels) in the order of `seeds`; the per-pixel sum over these passes (None when not
-    kept); the grid and the `RunInfo` (as JSON) of the run; each pass's render seconds; the chunk's seconds in
+    kept) and their pixel moments (each pixel's mean and M2, `welch_core.PixelMoments`; None when not kept); the
+    grid and the `RunInfo` (as JSON) of the run; each pass's render seconds; the chunk's seconds in
     the worker, request to result; its warnings; which worker rendered it; and the same for each layer of the
     passes (light components, light groups: name -> (sums, pixel sum)). One way out (`from_stats`), one way in
     (`stats`, `arrival`)."""
@@ -32,6 +33,7 @@ class ChunkResult:
     warnings: tuple[str, ...] = ()
     worker: str = ""
     layers: dict[str, tuple[np.ndarray, np.ndarray | None]] = field(default_factory=dict)
+    moments: tuple[np.ndarray, np.ndarray] | None = None
 
     @classmethod
     def from_stats(
@@ -55,19 +57,23 @@ class ChunkResult:
             warnings=tuple(warnings),
             worker=worker,
             layers={name: arrays(layer) for name, layer in (layers or {}).items()},
+            moments=None if stats.pixels is None else (stats.pixels.mean, stats.pixels.m2),
         )
 
     def stats(self) -> wc.TileStats:
-        return self._run(self.sums, self.pixel_sum)
+        pixels = None if self.moments is None else wc.PixelMoments.of(*self.moments, len(self.seeds))
+        return self._run(self.sums, self.pixel_sum, pixels)
 
     def arrival(self) -> Arrival:
         """The chunk's passes and layers for the render loop (`batch.jobs.loop`)."""
         layers = {name: self._run(sums, pixels) for name, (sums, pixels) in self.layers.items()}
         return Arrival(self.seeds, self.stats(), layers, None, self.warnings, self.worker)
 
-    def _run(self, sums, pixel_sum) -> wc.TileStats:
+    def _run(self, sums, pixel_sum, pixels=None) -> wc.TileStats:
         info = wc.RunInfo.from_json(self.info)
-        return wc.TileStats.from_sums(sums, self.seeds, self.height, self.width, self.tile, info, pixel_sum=pixel_sum)
+        return wc.TileStats.from_sums(
+            sums, self.seeds, self.height, self.width, self.tile, info, pixel_sum=pixel_sum, pixels=pixels
+        )
 
 
 @dataclass(frozen=True)
