@@ -206,7 +206,7 @@ class PixelUse:
 
     def to_json(self) -> dict:
         return {"mode": self.mode, "used": self.used, "reason": self.reason, "share": self.share,
-                "tripwire": None if not np.isfinite(self.ratio) else self.ratio}  # fmt: skip
+                "tripwire": None if not np.isfinite(self.ratio) else self.ratio, "min_df": MIN_PIXEL_DF}  # fmt: skip
 
 
 def pixel_eligibility(info) -> str | None:

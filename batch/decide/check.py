@@ -478,7 +478,7 @@ def report_check(check: Check, look: wc.Look, ref: wc.TileStats, test: wc.TileSt
 def look_comparison(job: CheckJob, ref: wc.TileStats, test: wc.TileStats) -> wc.Comparison:
     """The fixed-design comparison of a look's passes: what its map draws (descriptive; the look's own outcome is
     the verdict)."""
-    return wc.compare(ref, test, job.alpha, tolerance=job.tolerance)
+    return wc.compare(ref, test, job.alpha, tolerance=job.tolerance, pixel_variance=job.pixel_variance)
 
 
 #: Seeds a side may use under a time budget (the pass budget is fixed once the speed is known).

@@ -61,6 +61,7 @@ def summarize(
     names = side_names(ref.info, test.info, ref_name, test_name)
     image, noise = differences(ref.info, test.info)
     fixed = fixed_notes(ref.info, test.info)
+    pixels = c.pixel_use.to_json() if c.pixel_use is not None else None
     summary = {
         "verdict": data["verdict"],
         "verdict_text": data["verdict_text"],
@@ -68,7 +69,8 @@ def summarize(
         "alpha": outcome.alpha,
         "p_value": data["p_value"],
         "test": outcome.test,
-        "method": words.method(data, c.pvalue_method, check),
+        "method": words.method(data, c.pvalue_method, check, pixels),
+        "pixel_variance": pixels,
         "pvalue_method": c.pvalue_method,
         "outcome": data,
         "n_ref": outcome.n_ref,
@@ -428,6 +430,8 @@ def design_line(summary: dict[str, Any]) -> str:
 def console_lines(summary: dict[str, Any]) -> list[str]:
     """The lines the command line prints under the verdict."""
     lines = [design_line(summary)]
+    pixels = words.pixel_line(summary.get("pixel_variance"))
+    lines += [pixels] if pixels else []
     lines += [f"note: {note}" for note in summary["notes"]]
     lines += [f"warning: {warning}" for warning in summary["warnings"]]
     lines += layer_lines(summary.get("layers"))

@@ -224,8 +224,12 @@ def _early(check: dict[str, Any] | None) -> str:
     return f"; {check['early_share']:.0%} of it by {check['early_passes']} passes a side, the rest over the budget"
 
 
-def method(outcome: dict[str, Any], pvalue_method: str = "exact", check: dict[str, Any] | None = None) -> str:
-    """How the verdict was reached, in a sentence (`check`: the design of a check, see `summary.check_record`)."""
+def method(
+    outcome: dict[str, Any], pvalue_method: str = "exact", check: dict[str, Any] | None = None,
+    pixels: dict[str, Any] | None = None,
+) -> str:  # fmt: skip
+    """How the verdict was reached, in a sentence (`check`: the design of a check, see `summary.check_record`;
+    `pixels`: whether tiles were tested by their pixel variances, `welch_core.PixelUse.to_json`)."""
     name = "paired t-test on per-pass differences" if outcome["test"] == "paired" else "Welch's t-test"
     sizes = ", ".join(str(s["tile"]) for s in outcome["scales"])
     if outcome["design"] == "sequential":
@@ -233,12 +237,19 @@ def method(outcome: dict[str, Any], pvalue_method: str = "exact", check: dict[st
             f"{name} per tile and channel at tile sizes {sizes}, looked at after every chunk of passes: each "
             f"tile-channel of each size its Bonferroni share of alpha {outcome['alpha']:g}, spent over the looks "
             f"(Pocock{_early(check)}); Welch's t with n - 1 degrees of freedom"
+            + (" where a tile's variance is from its tile sums" if pixels and pixels["used"] else "")
         )
     else:
         text = (
             f"{name} per tile and channel (p: {pvalue_method}) at tile sizes {sizes}; channels combined by "
             "Bonferroni; the tiles of a size by Holm and a one-sided Kolmogorov-Smirnov test of uniformity, "
             "Bonferroni-combined; the sizes by Bonferroni"
+        )
+    if pixels and pixels["used"]:
+        text += (
+            f"; {pixels['share']:.0%} of the tile-channels with a test take their variance from their pixels' "
+            f"variances (independent pixels: {pixels['reason']}; Satterthwaite's df, the tile sums' test where it "
+            f"is below {pixels['min_df']:g})"
         )
     if outcome.get("resampling") is not None:
         text += (
@@ -254,6 +265,15 @@ def method(outcome: dict[str, Any], pvalue_method: str = "exact", check: dict[st
             + (", the intervals repeated over the looks)" if outcome["design"] == "sequential" else ")")
         )
     return text
+
+
+def pixel_line(pixels: dict[str, Any] | None) -> str | None:
+    """Which variance the tiles were tested with, and why, in a line (None: the test was off)."""
+    if pixels is None or pixels["mode"] == "off":
+        return None
+    if pixels["used"]:
+        return f"pixel variances: {pixels['share']:.0%} of the tile-channels tested by them ({pixels['reason']})"
+    return f"pixel variances: not used, {pixels['reason']}; tile sums' variances everywhere"
 
 
 def attribution(where: str | None, components: tuple[str, ...] = ()) -> str | None:
