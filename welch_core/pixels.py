@@ -148,15 +148,14 @@ class PixelMoments:
 
 def pixel_terms(moments: PixelMoments, tile: int, grid: tuple[int, int], covered: tuple[int, int]):
     """V = sum_p s_p² and Q = sum_p (s_p²)² per tile-channel of a `grid` of `tile`-pixel tiles over the `covered`
-    pixels (the right and bottom tiles partial where the tile does not divide them), as in (1) and (3)."""
-    from .tiles import tile_sums  # tiles imports this module
-
-    s2 = moments.variance()[: covered[0], : covered[1]]
-    v = tile_sums(s2, tile, s2.shape[2])
-    q = tile_sums(s2 * s2, tile, s2.shape[2])
-    if v.shape[:2] != tuple(grid):
-        raise WelchInputError(f"pixel moments give a {v.shape[:2]} grid, the run has {tuple(grid)}")
-    return v, q
+    pixels (the right and bottom tiles partial where the tile does not divide them; a coarse scale's one tile may
+    be larger than the image), as in (1) and (3)."""
+    ty, tx = grid
+    s2 = np.zeros((ty * tile, tx * tile, moments.shape[2]))
+    rows, cols = min(covered[0], ty * tile), min(covered[1], tx * tile)
+    s2[:rows, :cols] = moments.variance()[:rows, :cols]
+    blocks = s2.reshape(ty, tile, tx, tile, -1)
+    return blocks.sum(axis=(1, 3)), (blocks * blocks).sum(axis=(1, 3))
 
 
 def pixel_welch(ref, test, pvalue_method: str = "exact") -> TTestResult:

@@ -100,12 +100,14 @@ class Pool:
             cache[tile] = np.stack([wc.tile_sums(image, tile) for image in self.images])
         return cache[tile]
 
-    def stats(self, indices, tile: int) -> wc.TileStats:
-        """The statistics of the passes at `indices` (positions in the pool) at `tile`."""
+    def stats(self, indices, tile: int, pixels: bool = False) -> wc.TileStats:
+        """The statistics of the passes at `indices` (positions in the pool) at `tile`, with their pixel moments
+        where asked for (the pixel-variance test)."""
         indices = np.asarray(indices)
         size = self.spec.resolution
         seeds = [self.seeds[i] for i in indices]
-        return wc.TileStats.from_sums(self.sums(tile)[indices], seeds, size, size, tile, self.info)
+        moments = wc.PixelMoments.of_passes(self.images[np.sort(indices)]) if pixels else None
+        return wc.TileStats.from_sums(self.sums(tile)[indices], seeds, size, size, tile, self.info, pixels=moments)
 
 
 #: Keys of the pools rendered (not read from the cache) by this process, for the run's record.

@@ -1,0 +1,261 @@
+"""The pixel-variance test (`welch_core.pixels`): per tile-channel H0 "the expected tile sums are equal", tested with
+Var(tile sum) estimated as the sum of the tile's pixel variances (independent pixels), inside the tool's family
+(union-intersection over tile-channels and scales for `biased`). The moments' streaming path against the batch
+one, the statistic against a direct computation with scipy, its fallback, its gate (the run record) and tripwire,
+its calibration under H0 and its power where the tile test has none."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+from scipy import stats
+
+import welch_core as wc
+from welch_core.pixels import MIN_PIXEL_DF, TRIPWIRE_RATIO, pixel_eligibility, pixel_welch, tripwire
+
+SIZE, TILE = 64, 16
+CYCLES = wc.RunInfo(
+    renderer="Cycles",
+    renderer_version="5.0.1",
+    sampling_pattern="TABULATED_SOBOL",
+    scene="corner",
+    scene_id="builtin:corner:1",
+    settings={
+        "cycles.scrambling_distance": 1.0,
+        "cycles.auto_scrambling_distance": False,
+        "cycles.use_denoising": False,
+        'view_layers["ViewLayer"].cycles.use_denoising': False,
+        "cycles.use_adaptive_sampling": False,
+    },
+)
+
+
+def run_of(images, seeds, info=CYCLES, tile=TILE):
+    run = wc.TileStats(images.shape[1], images.shape[2], tile, 3, info, keep_pixel_moments=True)
+    for image, seed in zip(images, seeds, strict=True):
+        run.add_pass(image, seed)
+    return run
+
+
+def noisy(rng, n, scale=1.0, shift=0.0, size=SIZE):
+    """n passes of independent pixels: gamma noise (skewed, like a renderer's), mean 1 + shift, per-pixel scales."""
+    spread = np.linspace(0.5, 2.0, size * size * 3).reshape(size, size, 3)
+    return (1.0 + shift) + scale * spread * (rng.gamma(2.0, 0.5, (n, size, size, 3)) - 1.0)
+
+
+# -- the moments ---------------------------------------------------------------------------------------------
+
+
+def test_streamed_moments_equal_the_batch_ones_and_merge_exactly():
+    rng = np.random.default_rng(0)
+    images = noisy(rng, 9) * 1e4  # a large offset: the streaming path must not lose the variance to it
+    run = run_of(images, range(9))
+    batch = wc.PixelMoments.of_passes(images)
+    np.testing.assert_allclose(run.pixels.mean, batch.mean, rtol=1e-14)
+    np.testing.assert_allclose(run.pixels.m2, batch.m2, rtol=1e-10)
+    merged = run_of(images[:4], range(4)).merge(run_of(images[4:], range(4, 9)))
+    np.testing.assert_allclose(merged.pixels.m2, batch.m2, rtol=1e-10)
+    chunked = run_of(images[:2], range(2))
+    chunk = run_of(images[2:], range(2, 9))
+    chunked.add_sums(chunk.sums, chunk.seeds, chunk.pixel_sum, chunk.pixels)
+    np.testing.assert_allclose(chunked.pixels.m2, batch.m2, rtol=1e-10)
+    assert chunked.pixels.n == 9
+
+
+def test_derived_runs_keep_the_moments_only_where_they_are_the_same_passes():
+    run = run_of(noisy(np.random.default_rng(1), 4), range(4))
+    assert run.retile(2).pixels is run.pixels
+    assert run.subset([0, 1]).pixels is None and run.whole().pixels is None
+    without = run_of(noisy(np.random.default_rng(2), 2), range(10, 12))
+    without.pixels = None
+    assert run.merge(without).pixels is None
+    later = run_of(noisy(np.random.default_rng(3), 2), range(20, 22))
+    later.add_sums(without.sums, [30, 31], without.pixel_sum)  # a chunk without moments: the run keeps none
+    assert later.pixels is None
+
+
+def test_pixel_terms_at_every_scale_are_the_block_sums_of_the_pixel_variances():
+    images = noisy(np.random.default_rng(4), 5, size=40)  # partial tiles at the edges, a last scale beyond them
+    run = run_of(images, range(5))
+    s2 = images.var(axis=0, ddof=1)
+    for factor in (1, 2, 4):
+        scale = run.retile(factor) if factor > 1 else run
+        v, q = scale.pixel_terms()
+        tile = TILE * factor
+        for r in range(scale.tiles_y):
+            for c in range(scale.tiles_x):
+                block = s2[r * tile : (r + 1) * tile, c * tile : (c + 1) * tile]
+                np.testing.assert_allclose(v[r, c], block.sum(axis=(0, 1)), rtol=1e-12)
+                np.testing.assert_allclose(q[r, c], (block**2).sum(axis=(0, 1)), rtol=1e-12)
+
+
+def test_moments_survive_a_statistics_file_and_damaged_ones_are_refused(tmp_path):
+    run = run_of(noisy(np.random.default_rng(5), 3), range(3))
+    path = tmp_path / "run.npz"
+    wc.save_stats(path, run)
+    back = wc.load_stats(path, pixels=False)
+    assert back.pixels.n == 3
+    np.testing.assert_array_equal(back.pixels.m2, run.pixels.m2)
+    plain = wc.TileStats(SIZE, SIZE, TILE, 3, CYCLES)
+    plain.add_pass(noisy(np.random.default_rng(6), 1)[0], 0)
+    wc.save_stats(tmp_path / "plain.npz", plain)
+    assert wc.load_stats(tmp_path / "plain.npz").pixels is None
+    bad = wc.TileStats.from_sums(run.sums, run.seeds, SIZE, SIZE, TILE, CYCLES)
+    bad.pixels = wc.PixelMoments.of(run.pixels.mean, run.pixels.m2, 3)
+    bad.pixels.m2 = -bad.pixels.m2
+    wc.save_stats(tmp_path / "bad.npz", bad)
+    with pytest.raises(wc.StatsFileError, match=r"bad.npz' is damaged: pixel M2 must be finite and >= 0$"):
+        wc.load_stats(tmp_path / "bad.npz")
+
+
+# -- the statistic -------------------------------------------------------------------------------------------
+
+
+def test_the_statistic_equals_a_direct_computation_with_scipy():
+    rng = np.random.default_rng(7)
+    a_images, b_images = noisy(rng, 3), noisy(rng, 5, scale=2.0)
+    result = pixel_welch(run_of(a_images, range(3)), run_of(b_images, range(10, 15)))
+    for r, c, ch in [(0, 0, 0), (1, 2, 1), (3, 3, 2)]:
+        box = (slice(r * TILE, (r + 1) * TILE), slice(c * TILE, (c + 1) * TILE), ch)
+        a, b = a_images[(slice(None), *box)], b_images[(slice(None), *box)]
+        va, vb = a.var(axis=0, ddof=1).sum(), b.var(axis=0, ddof=1).sum()
+        qa, qb = (a.var(axis=0, ddof=1) ** 2).sum(), (b.var(axis=0, ddof=1) ** 2).sum()
+        se2 = va / 3 + vb / 5
+        t = (a.sum(axis=(1, 2)).mean() - b.sum(axis=(1, 2)).mean()) / np.sqrt(se2)
+        df = se2**2 / (qa / (9 * 2) + qb / (25 * 4))
+        assert result.statistic[r, c, ch] == pytest.approx(t, rel=1e-10)
+        assert result.df[r, c, ch] == pytest.approx(df, rel=1e-10)
+        assert result.pvalue[r, c, ch] == pytest.approx(2 * stats.t.sf(abs(t), df), rel=1e-8)
+
+
+def test_tile_channels_below_the_df_floor_keep_the_tile_test():
+    rng = np.random.default_rng(8)
+    images = 1 + rng.normal(0, 1, (4, SIZE, SIZE, 3))
+    images[:, :TILE, :TILE] = 1.0
+    images[0, 2, 3] = 500.0  # one firefly carries the tile: Satterthwaite's df collapses
+    ref, test = run_of(images[:2], range(2)), run_of(images[2:], range(2, 4))
+    tested = wc.comparison.test_tiles(ref, test, "welch", pixels=True)
+    welch = wc.welch_from_stats(ref.mean, ref.variance, 2, test.mean, test.variance, 2)
+    by_pixels = pixel_welch(ref, test)
+    assert by_pixels.df[0, 0, 0] < MIN_PIXEL_DF and not tested.pixel[0, 0, 0]
+    assert tested.result.pvalue[0, 0, 0] == welch.pvalue[0, 0, 0]
+    assert tested.pixel[1:, 1:].all()
+    np.testing.assert_array_equal(tested.result.pvalue[1:, 1:], by_pixels.pvalue[1:, 1:])
+
+
+@pytest.mark.parametrize(("n_ref", "n_test"), [(2, 2), (3, 8)])
+def test_pvalues_are_uniform_under_h0_with_unequal_pixel_variances(n_ref, n_test):
+    rng = np.random.default_rng(9 + n_ref)
+    pvalues = []
+    for _ in range(60):
+        ref = run_of(1 + rng.normal(0, 1, (n_ref, SIZE, SIZE, 3)), range(n_ref))
+        test = run_of(1 + rng.normal(0, 3, (n_test, SIZE, SIZE, 3)), range(100, 100 + n_test))
+        pvalues.append(pixel_welch(ref, test).pvalue.ravel())
+    assert stats.kstest(np.concatenate(pvalues), "uniform").pvalue > 1e-3
+
+
+def test_false_biased_rate_of_the_family_under_h0_is_within_its_bound():
+    """`biased` rejects the intersection of every tile-channel's H0 at every scale: at alpha 0.05, 300 seeded A/A
+    pairs of 2 v 2 skewed passes (the design the pixel test is for) say it at most at the binomial bound."""
+    rng = np.random.default_rng(10)
+    found = 0
+    for _ in range(300):
+        ref, test = run_of(noisy(rng, 2), range(2)), run_of(noisy(rng, 2), range(2, 4))
+        found += wc.compare(ref, test, 0.05, pixel_variance="auto").verdict.label == "biased"
+    assert found <= stats.binom.ppf(0.999, 300, 0.05)
+
+
+def test_it_finds_at_two_passes_a_bias_the_tile_test_cannot():
+    rng = np.random.default_rng(11)
+    found = {"auto": 0, "off": 0}
+    for _ in range(20):
+        ref, test = run_of(noisy(rng, 2), range(2)), run_of(noisy(rng, 2, shift=0.08), range(2, 4))
+        for mode in found:
+            found[mode] += wc.compare(ref, test, 0.01, pixel_variance=mode).verdict.label == "biased"
+    assert found == {"auto": 20, "off": 9}  # seeded: the tile test finds it in under half
+
+
+# -- where it is used ----------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("change", "reason"),
+    [
+        ({"renderer": "my renderer", "scene_id": ""},
+         "not Cycles passes rendered by this tool (vouch for the renderer with --pixel-variance on)"),
+        ({"scene_id": "command:0123"},
+         "not Cycles passes rendered by this tool (vouch for the renderer with --pixel-variance on)"),
+        ({"renderer_version": "4.5.4"},
+         "the sampling pattern TABULATED_SOBOL of Blender 4.5 is not measured independent"),
+        ({"sampling_pattern": "SOBOL_BURLEY"},
+         "the sampling pattern SOBOL_BURLEY of Blender 5.0 is not measured independent"),
+        ({"settings": {**CYCLES.settings, "cycles.scrambling_distance": 0.1}},
+         "cycles.scrambling_distance is 0.1 (pixels share samples below 1)"),
+        ({"settings": {**CYCLES.settings, "cycles.auto_scrambling_distance": True}, "spp": 4},
+         "cycles.auto_scrambling_distance is on (pixels share samples)"),
+        ({"settings": {**CYCLES.settings, 'view_layers["ViewLayer"].cycles.use_denoising': True}},
+         'view_layers["ViewLayer"].cycles.use_denoising is on'),
+        ({"settings": {**CYCLES.settings, "cycles.use_adaptive_sampling": True}}, "cycles.use_adaptive_sampling is on"),
+    ],
+)  # fmt: skip
+def test_the_record_must_prove_the_settings_it_was_measured_under(change, reason):
+    assert pixel_eligibility(dataclasses.replace(CYCLES, **change)) == reason
+
+
+def test_eligible_records():
+    assert pixel_eligibility(CYCLES) is None
+    one_spp = {"settings": {**CYCLES.settings, "cycles.auto_scrambling_distance": True}, "spp": 1}
+    assert pixel_eligibility(dataclasses.replace(CYCLES, **one_spp)) is None  # changes nothing at 1 spp
+    assert pixel_eligibility(dataclasses.replace(CYCLES, sampling_pattern="BLUE_NOISE")) is None
+
+
+def test_why_it_did_not_run_is_said():
+    rng = np.random.default_rng(12)
+    ref, test = run_of(noisy(rng, 3), range(3)), run_of(noisy(rng, 3), range(3, 6))
+    assert wc.compare(ref, test, pixel_variance="off").pixel_use.reason == "off (--pixel-variance off)"
+    same = run_of(noisy(rng, 3), range(3))
+    assert wc.compare(ref, same).pixel_use is not None
+    assert wc.pixel_use(ref, same, "paired", "auto").reason == (
+        "the paired design needs each pixel's difference per seed, which the runs do not keep"
+    )
+    plain = wc.TileStats.from_sums(test.sums, test.seeds, SIZE, SIZE, TILE, CYCLES)
+    assert wc.pixel_use(ref, plain, "welch", "auto").reason == (
+        "a run keeps no pixel moments (ingested, rendered on workers or before they were kept)"
+    )
+    other = run_of(noisy(rng, 3), range(3, 6), dataclasses.replace(CYCLES, renderer="mine", scene_id=""))
+    use = wc.compare(ref, other, pixel_variance="auto").pixel_use
+    assert not use.used and use.reason.startswith("the test: not Cycles passes")
+    vouched = wc.compare(ref, other, pixel_variance="on").pixel_use
+    assert vouched.used and vouched.reason == "vouched for (--pixel-variance on)" and vouched.share == 1.0
+
+
+def test_the_tripwire_refuses_pixels_that_share_their_noise():
+    """Pixels of a pass that share most of their noise (a low scrambling distance) make the tile sums vary far
+    more than the pixel variances say: refused at 2 passes a side, whatever the user vouches."""
+    rng = np.random.default_rng(13)
+
+    def correlated(n):
+        shared = rng.normal(0, 1, (n, 1, 1, 3))
+        return 1 + shared + 0.1 * rng.normal(0, 1, (n, SIZE, SIZE, 3))
+
+    ref, test = run_of(correlated(2), range(2)), run_of(correlated(2), range(2, 4))
+    assert tripwire(ref, test) > 10 * TRIPWIRE_RATIO
+    use = wc.compare(ref, test, pixel_variance="on").pixel_use
+    assert not use.used and use.reason.startswith("refused: the tile sums vary ")
+    assert use.reason.endswith("x more than their pixels say (pixels correlated within a pass)")
+    independent = run_of(noisy(rng, 2), range(10, 12)), run_of(noisy(rng, 2), range(12, 14))
+    assert tripwire(*independent) < TRIPWIRE_RATIO
+
+
+def test_the_looks_keep_the_pixel_df_and_say_what_they_used():
+    rng = np.random.default_rng(14)
+    ref, test = run_of(noisy(rng, 3), range(3)), run_of(noisy(rng, 3), range(3, 6))
+    plan = wc.SequentialPlan(max_passes=16, pixel_variance="auto")
+    look = wc.sequential_look(ref, test, plan, [3 / 16])
+    assert look.pixel_use.used and look.pixel_use.share > 0.9
+    tested = wc.comparison.test_tiles(ref, test, "welch", pixels=True)
+    kept = wc.looks.conservative(tested, 3)
+    np.testing.assert_array_equal(kept.result.df[tested.pixel], tested.result.df[tested.pixel])
+    assert (kept.result.df[~tested.pixel & (tested.result.reason == 0)] == 2).all()
+    with pytest.raises(wc.WelchInputError, match=r"^`pixel_variance` must be one of \('auto', 'on', 'off'\), got 'x'$"):
+        wc.SequentialPlan(max_passes=16, pixel_variance="x")
