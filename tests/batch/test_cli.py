@@ -148,6 +148,28 @@ def test_compare_unbiased_biased_and_reports(tmp_path, capsys):
     assert pmap.shape == (4, 6, 3)
 
 
+def test_ingested_runs_use_the_pixel_variances_only_where_the_user_vouches(tmp_path, capsys):
+    """`ingest` proves nothing about the renderer's pixels: `auto` keeps the tile test and says why; `on` vouches,
+    and at 2 passes a side it finds a 5 % brighter image the tile test does not."""
+    ref = ingest(tmp_path, "ref", range(0, 2))
+    brighter = ingest(tmp_path, "brighter", range(200, 202), scale=1.05)
+    capsys.readouterr()
+    assert cli.main(["compare", ref, brighter, "--out", str(tmp_path / "auto")]) == Exit.OK
+    out = capsys.readouterr().out
+    assert "  pixel variances: not used, the reference: not Cycles passes rendered by this tool (vouch for the " \
+           "renderer with --pixel-variance on); tile sums' variances everywhere\n" in out  # fmt: skip
+    on = ["compare", ref, brighter, "--out", str(tmp_path / "on"), "--pixel-variance", "on"]
+    assert cli.main(on) == Exit.BIASED
+    out = capsys.readouterr().out
+    share = r"  pixel variances: \d+% of the tile-channels tested by them \(vouched for \(--pixel-variance on\)\)\n"
+    assert re.search(share, out)
+    report = json.loads((tmp_path / "on" / "report.json").read_text())
+    assert report["pixel_variance"]["used"] and report["pixel_variance"]["mode"] == "on"
+    assert "take their variance from their pixels' variances" in report["method"]
+    assert cli.main([*on[:-1], "off"]) == Exit.OK
+    assert "pixel variances" not in capsys.readouterr().out
+
+
 def test_full_maps_on_request(tmp_path):
     ref = ingest(tmp_path, "ref", range(0, 8))
     test = ingest(tmp_path, "test", range(100, 108))
