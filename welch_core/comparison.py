@@ -25,7 +25,7 @@ from .effect import Effect, effect_sizes
 from .errors import SeedOverlapError, WelchInputError, check_alpha
 from .multitest import GlobalTest, bonferroni, bonferroni_p, combine_channels, global_test
 from .permutation import needs_resampling, permutation_max_t
-from .pixels import MIN_PIXEL_DF, PixelUse, pixel_use, pixel_welch
+from .pixels import MIN_PIXEL_DF, PixelMoments, PixelUse, pixel_paired, pixel_use, pixel_welch
 from .tiles import TileStats
 from .ttest import Reason, TTestResult, paired_from_stats, welch_from_stats
 from .verdict import Verdict
@@ -38,6 +38,7 @@ __all__ = [
     "choose_test",
     "compare",
     "identical_passes_of",
+    "differences_of",
     "paired_differences",
     "pixel_share",
     "scale_factors",
@@ -228,14 +229,15 @@ SPARSE_SHARE = 0.5
 
 
 def test_tiles(
-    ref: TileStats, test: TileStats, kind: str, pvalue_method: str = "exact", pixels: bool = False
-) -> TileTest:
+    ref: TileStats, test: TileStats, kind: str, pvalue_method: str = "exact", pixels: bool = False,
+    pairs: PixelMoments | None = None,
+) -> TileTest:  # fmt: skip
     """Welch's test (disjoint seeds) or the paired test (identical seeds) per tile and channel, with the
     normality check of the Welch samples (of each side, or of the per-pass differences).
 
-    With `pixels` (unpaired runs that keep pixel moments, see `welch_core.pixels`): each tile-channel whose pixel
-    test has at least `MIN_PIXEL_DF` degrees of freedom takes that test's result instead (its variance from the
-    pixels); the others keep Welch's test on the tile sums.
+    With `pixels` (runs that keep pixel moments, see `welch_core.pixels`; paired runs: `pairs`, the moments of each
+    pixel's difference per seed): each tile-channel whose pixel test has at least `MIN_PIXEL_DF` degrees of freedom
+    takes that test's result instead (its variance from the pixels); the others keep the test on the tile sums.
 
     Paired runs: where the per-pass differences are clearly not normal but each side's own samples are (a change
     that alters a few light paths: differences exactly zero in most passes and large in a few), the tile-channel
@@ -247,9 +249,16 @@ def test_tiles(
     with np.errstate(invalid="ignore", divide="ignore"):
         ref_var = ref.variance / ref.n
     own = normality(ref).suspect | normality(test).suspect
+    fields = [f.name for f in dataclasses.fields(TTestResult)]
     if kind == "paired":
-        diffs = paired_differences(ref, test)
+        diffs = paired_differences(ref, test, pairs)
         result = paired_from_stats(diffs.mean, diffs.variance, diffs.n, pvalue_method=pvalue_method)
+        use = np.zeros(result.pvalue.shape, bool)
+        if pixels and diffs.pixels is not None:
+            by_pixels = pixel_paired(diffs, pvalue_method)
+            with np.errstate(invalid="ignore"):
+                use = (by_pixels.reason == Reason.VALID) & (by_pixels.df >= MIN_PIXEL_DF)
+            result = TTestResult(**{f: np.where(use, getattr(by_pixels, f), getattr(result, f)) for f in fields})
         # cov(d, r) per pass from Var(test) = Var(ref) + Var(d) + 2 cov(d, r), over the passes' count
         with np.errstate(invalid="ignore", divide="ignore"):
             cross = (test.variance - ref.variance - diffs.variance) / (2.0 * diffs.n)
@@ -260,13 +269,13 @@ def test_tiles(
             welch = welch_from_stats(
                 ref.mean, ref.variance, ref.n, test.mean, test.variance, test.n, pvalue_method=pvalue_method
             )
-            fields = (f.name for f in dataclasses.fields(TTestResult))
             result = TTestResult(**{f: np.where(unpaired, getattr(welch, f), getattr(result, f)) for f in fields})
             cross = np.where(unpaired, -ref_var, cross)
             suspect = suspect & ~unpaired
         checked = diffs.n >= MIN_PASSES_FOR_NORMALITY
         sparse = (diffs.sums == 0).mean(axis=0) >= SPARSE_SHARE if diffs.n else np.zeros_like(suspect)
-        return TileTest(kind, result, suspect, checked, ref.mean, ref_var, cross, unpaired, sparse & checked)
+        pixel = use & ~unpaired if pixels else None
+        return TileTest(kind, result, suspect, checked, ref.mean, ref_var, cross, unpaired, sparse & checked, pixel)
     result = welch_from_stats(
         ref.mean, ref.variance, ref.n, test.mean, test.variance, test.n, pvalue_method=pvalue_method
     )
@@ -276,22 +285,23 @@ def test_tiles(
     by_pixels = pixel_welch(ref, test, pvalue_method)
     with np.errstate(invalid="ignore"):
         use = (by_pixels.reason == Reason.VALID) & (by_pixels.df >= MIN_PIXEL_DF)
-    fields = (f.name for f in dataclasses.fields(TTestResult))
     result = TTestResult(**{f: np.where(use, getattr(by_pixels, f), getattr(result, f)) for f in fields})
     ref_var = np.where(use, ref.pixel_terms()[0] / ref.n, ref_var)
     return TileTest(kind, result, own, checked, ref.mean, ref_var, -ref_var, pixel=use)
 
 
-def paired_differences(ref: TileStats, test: TileStats) -> TileStats:
-    """The per-pass differences test - reference of two runs with the same seeds, in the reference's order."""
+def paired_differences(ref: TileStats, test: TileStats, pairs: PixelMoments | None = None) -> TileStats:
+    """The per-pass differences test - reference of two runs with the same seeds, in the reference's order, with
+    `pairs`, the moments of each pixel's difference over those seeds, where given."""
     if test.seeds == ref.seeds:
         test_sums = test.sums
     else:
         order = {seed: i for i, seed in enumerate(test.seeds)}
         test_sums = test.sums[[order[s] for s in ref.seeds]]
     return TileStats.from_sums(
-        test_sums - ref.sums, ref.seeds, ref.height, ref.width, ref.tile, edges=ref.edges, covered=ref.covered
-    )
+        test_sums - ref.sums, ref.seeds, ref.height, ref.width, ref.tile, edges=ref.edges, covered=ref.covered,
+        pixels=pairs,
+    )  # fmt: skip
 
 
 def identical_passes_of(ref: TileStats, test: TileStats, kind: str) -> bool:
@@ -324,6 +334,7 @@ def compare(
     tolerance: float | None = None,
     equivalence_tile: int | None = None,
     pixel_variance: str = "off",
+    pairs: PixelMoments | None = None,
 ) -> Comparison:
     """Test whether `test` converges to the same image as `ref`, per tile at every scale and as a whole.
 
@@ -347,6 +358,9 @@ def compare(
     pixel_variance : {"off", "auto", "on"}
         Test tiles by their pixels' variances where the runs allow it (`welch_core.pixels`): "auto" where their
         records prove independent pixels, "on" where the user vouches for the renderer.
+    pairs : PixelMoments, optional
+        Paired runs: the moments of each pixel's difference test - reference over the seeds (the pixel test of
+        paired runs needs them; neither run's own moments hold them).
 
     Returns
     -------
@@ -364,8 +378,8 @@ def compare(
     ref.same_grid(test)
     kind = choose_test(ref, test, test_kind)
     identical = identical_passes_of(ref, test, kind)
-    use = pixel_use(ref, test, kind, pixel_variance)
-    scales, tests, runs, uncovered = assess_scales(ref, test, kind, pvalue_method, alpha, tile, use.used)
+    use = pixel_use(ref, test, kind, pixel_variance, differences_of(ref, test, kind, pairs))
+    scales, tests, runs, uncovered = assess_scales(ref, test, kind, pvalue_method, alpha, tile, use.used, pairs)
     claim = check_claim_tile(equivalence_tile, scales, tolerance)
     count = len(scales)
     with np.errstate(invalid="ignore"):
@@ -400,6 +414,15 @@ def compare(
     return dataclasses.replace(
         finest, p_value=p_value, scales=scales, uncovered=uncovered, outcome=outcome, pixel_use=use
     )
+
+
+def differences_of(ref: TileStats, test: TileStats, kind: str, pairs: PixelMoments | None) -> TileStats | None:
+    """A paired run's per-seed differences with their pixel moments (None where there are none to test)."""
+    if kind != "paired" or pairs is None:
+        return None
+    if pairs.n != ref.n or pairs.shape != (ref.height, ref.width, ref.channels):
+        raise WelchInputError(f"`pairs` must be the moments of the {ref.n} paired passes' differences, got {pairs.n}")
+    return paired_differences(ref, test, pairs)
 
 
 def pixel_share(use: PixelUse, finest: TileTest) -> PixelUse:
@@ -443,8 +466,9 @@ def check_claim_tile(equivalence_tile, scales, tolerance) -> int | None:
 
 
 def assess_scales(
-    ref: TileStats, test: TileStats, kind: str, pvalue_method: str, alpha: float, tile=None, pixels: bool = False
-):
+    ref: TileStats, test: TileStats, kind: str, pvalue_method: str, alpha: float, tile=None, pixels: bool = False,
+    pairs: PixelMoments | None = None,
+):  # fmt: skip
     """Every scale tested on its own: (the scales' comparisons, their tile tests, their (reference, test) runs,
     the finest tiles no scale can test). `compare` and the looks decide from them; `pixels`: see `test_tiles`."""
     tests, scales, runs = [], [], []
@@ -453,7 +477,7 @@ def assess_scales(
         if f != done:
             a, b, done = a.retile(f // done), b.retile(f // done), f
         runs.append((a, b))
-        tests.append(test_tiles(a, b, kind, pvalue_method, pixels))
+        tests.append(test_tiles(a, b, kind, pvalue_method, pixels, pairs))
         scales.append(_scale(a, b, tests[-1], pvalue_method, alpha))
     return tuple(scales), tests, runs, _uncovered(scales[0], scales)
 

@@ -57,6 +57,7 @@ from .comparison import (
     assess_scales,
     check_claim_tile,
     choose_test,
+    differences_of,
     identical_passes_of,
     pixel_share,
     test_tiles,
@@ -65,7 +66,7 @@ from .decision import Evidence, Outcome, decide
 from .errors import WelchInputError, check_alpha, check_int
 from .multitest import bonferroni
 from .permutation import needs_resampling, permutation_max_t
-from .pixels import PIXEL_MODES, PixelUse, pixel_use
+from .pixels import PIXEL_MODES, PixelMoments, PixelUse, pixel_use
 from .sequential import SPENDING, boundaries, nominal_levels
 from .tiles import TileStats
 from .ttest import Reason, pvalue_exact
@@ -274,7 +275,7 @@ def resampling_level(fractions, plan: SequentialPlan) -> float:
 
 def sequential_look(
     ref: TileStats, test: TileStats, plan: SequentialPlan, fractions, final: bool | None = None,
-    budget: int | None = None,
+    budget: int | None = None, pairs: PixelMoments | None = None,
 ) -> Look:  # fmt: skip
     """The decision at the last of the looks at information `fractions` (every look so far, increasing).
 
@@ -282,7 +283,8 @@ def sequential_look(
     fractions of every look so far are needed; they are recomputed identically on resume. `final` says this is
     the last look (default: its fraction is 1); a check stopped by its time budget passes True. `budget` is the
     passes a side the check may render (default the plan's; more once it was grown): the futility stop of
-    `equivalent` compares the passes each scale needs with it (`welch_core.decision`).
+    `equivalent` compares the passes each scale needs with it (`welch_core.decision`). `pairs`: a paired run's
+    moments of each pixel's difference (see `compare`).
 
     Each tile-channel of each scale has the Bonferroni share alpha / (S m_s) of `biased`, spent over the looks by
     the early and the main design (`biased_levels`);
@@ -297,8 +299,8 @@ def sequential_look(
     ref.same_grid(test)
     kind = choose_test(ref, test, plan.test_kind)
     identical = identical_passes_of(ref, test, kind)
-    use = pixel_use(ref, test, kind, plan.pixel_variance)
-    scales, tests, runs, uncovered = assess_scales(ref, test, kind, "exact", plan.alpha, pixels=use.used)
+    use = pixel_use(ref, test, kind, plan.pixel_variance, differences_of(ref, test, kind, pairs))
+    scales, tests, runs, uncovered = assess_scales(ref, test, kind, "exact", plan.alpha, pixels=use.used, pairs=pairs)
     whole = test_tiles(ref.whole(), test.whole(), kind)
     n = min(ref.n, test.n)
     if any(np.any(t.welch) for t in (*tests, whole)):  # Welch's test somewhere (a paired run's sparse tiles too)

@@ -15,6 +15,19 @@ tile sum and V = sum_p s_p² (`PixelMoments` keeps each pixel's mean and M2, str
 (3) is Satterthwaite's for a sum of independent variance estimates, each with n - 1 degrees of freedom: up to
 tile² (n - 1), so at n = 2 the critical value is nearly normal instead of that of a t with one degree of freedom.
 
+A pixel that takes few values (a light seen or not, a caustic hit or not) has a sample variance of exactly 0 on a
+side whose few passes happened to agree, so V can miss the very pixels that make the sides' means differ
+(measured: a glass caustic's pixel of 76.4 in both of one side's two passes, 0 in the other's, gave |t| = 62).
+Under H0 a pixel has one mean on both sides, so its variance over both sides' passes together is as good an
+estimate, and it sees such a pixel whatever its passes did:
+
+    se² = max(V_ref / n_ref + V_test / n_test, V_both (1 / n_ref + 1 / n_test))                       (4)
+
+with V_both = sum_p of each pixel's variance over all n_ref + n_test passes (its df (3) with n_ref + n_test - 1 a
+pixel). Under H1 V_both also holds the difference, which costs a little power where the difference is large
+anyway. Paired runs test the per-seed differences d the same way: V / n, or the second moments about 0
+(sum_p sum d² / n, n df a pixel; unbiased under H0, where each pixel's d has mean 0) where larger.
+
 Hypothesis and family: per tile-channel H0 is that the two sides' expected tile sums are equal, as for the tile
 test; the pixel test replaces the tile test's p-value of a tile-channel and the family (`comparison`, `looks`) is
 unchanged. Its assumption, (1), is not tested by the data at a few passes, so it is used only where the run's own
@@ -35,7 +48,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import WelchInputError
-from .ttest import Reason, TTestResult, pvalue_exact, welch_from_stats
+from .ttest import Reason, TTestResult, paired_from_stats, pvalue_exact, welch_from_stats
 
 __all__ = [
     "INDEPENDENT_PATTERNS",
@@ -45,6 +58,7 @@ __all__ = [
     "PixelMoments",
     "PixelUse",
     "pixel_eligibility",
+    "pixel_paired",
     "pixel_terms",
     "pixel_use",
     "pixel_welch",
@@ -60,13 +74,17 @@ MIN_PIXEL_DF = 100.0
 PIXEL_MODES = ("auto", "on", "off")
 
 #: (Blender release, sampling pattern) whose pixels were measured independent or negatively correlated within a
-#: pass: D = Var(tile sum) / sum Var(pixel) within its permutation null or below it, on the built-in scenes and the
-#: glass caustic (docs/findings/pixel_variance.md). Extend only by measurement.
-INDEPENDENT_PATTERNS = {
-    ("5.0", "TABULATED_SOBOL"),
-    ("5.0", "BLUE_NOISE"),
-    ("5.0", "AUTOMATIC"),  # renders the passes of BLUE_NOISE in 5.0
-}
+#: pass: D = Var(tile sum) / sum Var(pixel) within its permutation null or below it, on the diffuse corner and the
+#: glass caustic (docs/findings/pixel_variance.md). AUTOMATIC renders BLUE_NOISE's passes in 4.5-5.3; 5.1, 5.2
+#: and 5.3 render the same passes. 4.2-4.4 were not measured. Extend only by measurement.
+INDEPENDENT_PATTERNS = frozenset(
+    {("3.4", pattern) for pattern in ("SOBOL", "PROGRESSIVE_MULTI_JITTER")}
+    | {
+        (release, pattern)
+        for release in ("4.5", "5.0", "5.1", "5.2", "5.3")
+        for pattern in ("TABULATED_SOBOL", "BLUE_NOISE", "AUTOMATIC")
+    }
+)
 
 #: The tripwire's limit on the median over tile-channels of (tile-sum variance / V), each divided by the median
 #: of its null distribution chi²(n - 1) / (n - 1): independent pixels give about 1, the scrambling distance 0.1
@@ -146,42 +164,76 @@ class PixelMoments:
         return self.m2 / (self.n - 1)
 
 
-def pixel_terms(moments: PixelMoments, tile: int, grid: tuple[int, int], covered: tuple[int, int]):
+def pixel_terms(moments: PixelMoments, tile: int, grid: tuple[int, int], covered: tuple[int, int], about_zero=False):
     """V = sum_p s_p² and Q = sum_p (s_p²)² per tile-channel of a `grid` of `tile`-pixel tiles over the `covered`
     pixels (the right and bottom tiles partial where the tile does not divide them; a coarse scale's one tile may
-    be larger than the image), as in (1) and (3)."""
+    be larger than the image), as in (1) and (3). `about_zero`: each pixel's second moment about 0 over its n
+    passes, sum x² / n, instead of s_p² (see (4))."""
     ty, tx = grid
     s2 = np.zeros((ty * tile, tx * tile, moments.shape[2]))
     rows, cols = min(covered[0], ty * tile), min(covered[1], tx * tile)
-    s2[:rows, :cols] = moments.variance()[:rows, :cols]
+    if about_zero:
+        s2[:rows, :cols] = (moments.m2 / moments.n + moments.mean**2)[:rows, :cols]
+    else:
+        s2[:rows, :cols] = moments.variance()[:rows, :cols]
     blocks = s2.reshape(ty, tile, tx, tile, -1)
     return blocks.sum(axis=(1, 3)), (blocks * blocks).sum(axis=(1, 3))
 
 
+def _replace_variance(result: TTestResult, se2, df, pvalue_method) -> TTestResult:
+    """`result` with the squared standard error `se2`, its df, and the t and p that follow."""
+    valid = result.reason == Reason.VALID
+    with np.errstate(divide="ignore", invalid="ignore"):
+        se = np.sqrt(se2)
+        t = np.where(valid, -result.mean_difference / se, np.nan)
+    df = np.where(valid, df, np.nan)
+    p = np.where(valid, pvalue_exact(t, df), np.nan)
+    return dataclasses.replace(result, statistic=t, df=df, pvalue=p, standard_error=se)
+
+
 def pixel_welch(ref, test, pvalue_method: str = "exact") -> TTestResult:
-    """(2) and (3) per tile-channel of two runs (`TileStats` with `pixels`), as a `TTestResult`: the reasons of
+    """(2)-(4) per tile-channel of two runs (`TileStats` with `pixels`), as a `TTestResult`: the reasons of
     Welch's test on the tile sums (a constant tile has zero pixel variances too)."""
     v_ref, q_ref = ref.pixel_terms()
     v_test, q_test = test.pixel_terms()
     result = welch_from_stats(ref.mean, v_ref, ref.n, test.mean, v_test, test.n, pvalue_method=pvalue_method)
+    both = ref.pixels.merged(test.pixels)  # (4): each pixel's variance over both sides' passes
+    total = ref.n + test.n
+    v_both, q_both = pixel_terms(both, ref.tile, (ref.tiles_y, ref.tiles_x), ref.covered)
     with np.errstate(divide="ignore", invalid="ignore"):
         a, b = v_ref / ref.n, v_test / test.n
         df = (a + b) ** 2 / (q_ref / (ref.n**2 * (ref.n - 1.0)) + q_test / (test.n**2 * (test.n - 1.0)))
-    valid = result.reason == Reason.VALID
-    df = np.where(valid, df, np.nan)
-    p = np.where(valid, pvalue_exact(result.statistic, df), np.nan)
-    return dataclasses.replace(result, df=df, pvalue=p)
+        pooled = v_both * (1.0 / ref.n + 1.0 / test.n)
+        pooled_df = (total - 1.0) * v_both**2 / q_both
+    larger = pooled > a + b
+    return _replace_variance(result, np.where(larger, pooled, a + b), np.where(larger, pooled_df, df), pvalue_method)
 
 
-def tripwire(ref, test) -> float:
-    """How much more the tile sums vary than their pixels say, pooled over both sides: the median over valid
-    tile-channels of s²(tile sums) / V, divided by the median of chi²(n - 1) / (n - 1) (what independent normal
-    pixels give). About 1 where (1) holds, below where pixels are negatively correlated; gross positive
-    correlation (the scrambling distance 0.1: about 100) shows at 2 passes a side. NaN with nothing to measure."""
+def pixel_paired(differences, pvalue_method: str = "exact") -> TTestResult:
+    """The paired form of (2)-(4) per tile-channel, on the per-seed differences test - reference (a `TileStats`
+    whose `pixels` are the moments of each pixel's difference): t = mean / sqrt(V / n) with df = (n - 1) V² / Q,
+    V and Q of the differences' pixel variances, or of their second moments about 0 (n df) where larger."""
+    v, q = differences.pixel_terms()
+    n = differences.n
+    v0, q0 = pixel_terms(differences.pixels, differences.tile, differences.grid_shape[:2], differences.covered, True)
+    result = paired_from_stats(differences.mean, v, n, pvalue_method=pvalue_method)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        larger = v0 > v
+        se2 = np.where(larger, v0, v) / n
+        df = np.where(larger, n * v0**2 / q0, (n - 1.0) * v**2 / q)
+    return _replace_variance(result, se2, df, pvalue_method)
+
+
+def tripwire(*runs) -> float:
+    """How much more the tile sums vary than their pixels say, pooled over `runs` (both sides, or a paired run's
+    differences): the median over valid tile-channels of s²(tile sums) / V, divided by the median of
+    chi²(n - 1) / (n - 1) (what independent normal pixels give). About 1 where (1) holds, below where pixels are
+    negatively correlated; gross positive correlation (the scrambling distance 0.1: about 100) shows at 2 passes a
+    side. NaN with nothing to measure."""
     from scipy import stats as scipy_stats
 
     ratios = []
-    for run in (ref, test):
+    for run in runs:
         if run.n < 2:
             continue
         v, _ = run.pixel_terms()
@@ -231,19 +283,18 @@ def pixel_eligibility(info) -> str | None:
     return None
 
 
-def pixel_use(ref, test, kind: str, mode: str) -> PixelUse:
+def pixel_use(ref, test, kind: str, mode: str, differences=None) -> PixelUse:
     """Whether `ref` and `test` (`TileStats`) are tested by their pixel variances under `mode` (see
-    `PIXEL_MODES`), and why: the runs must keep pixel moments, be unpaired (the paired design would need each
-    pixel's difference per seed, which neither run's moments hold), have two passes a side, be eligible by their
-    records (`pixel_eligibility`, unless the user vouches with "on"), and pass the `tripwire`."""
+    `PIXEL_MODES`), and why: the runs must keep pixel moments (a paired run: the moments of each pixel's
+    difference per seed, `differences`, a `TileStats` of the per-seed differences that keeps them), have two
+    passes a side, be eligible by their records (`pixel_eligibility`, unless the user vouches with "on"), and
+    pass the `tripwire`."""
     if mode not in PIXEL_MODES:
         raise WelchInputError(f"`pixel_variance` must be one of {PIXEL_MODES}, got {mode!r}")
     if mode == "off":
         return PixelUse(mode, False, "off (--pixel-variance off)")
-    if kind != "welch":
-        return PixelUse(
-            mode, False, "the paired design needs each pixel's difference per seed, which the runs do not keep"
-        )
+    if kind == "paired" and (differences is None or differences.pixels is None):
+        return PixelUse(mode, False, "the paired runs' per-seed pixel differences were not kept")
     if ref.pixels is None or test.pixels is None:
         return PixelUse(
             mode, False, "a run keeps no pixel moments (ingested, rendered on workers or before they were kept)"
@@ -255,7 +306,7 @@ def pixel_use(ref, test, kind: str, mode: str) -> PixelUse:
             reason = pixel_eligibility(run.info)
             if reason is not None:
                 return PixelUse(mode, False, f"the {side}: {reason}")
-    ratio = tripwire(ref, test)
+    ratio = tripwire(differences) if kind == "paired" else tripwire(ref, test)
     if ratio > TRIPWIRE_RATIO:
         return PixelUse(mode, False, f"refused: the tile sums vary {ratio:.3g}x more than their pixels say (pixels "
                         "correlated within a pass)", ratio=ratio)  # fmt: skip

@@ -11,7 +11,7 @@ import pytest
 from scipy import stats
 
 import welch_core as wc
-from welch_core.pixels import MIN_PIXEL_DF, TRIPWIRE_RATIO, pixel_eligibility, pixel_welch, tripwire
+from welch_core.pixels import MIN_PIXEL_DF, TRIPWIRE_RATIO, pixel_eligibility, pixel_paired, pixel_welch, tripwire
 
 SIZE, TILE = 64, 16
 CYCLES = wc.RunInfo(
@@ -113,19 +113,35 @@ def test_moments_survive_a_statistics_file_and_damaged_ones_are_refused(tmp_path
 
 def test_the_statistic_equals_a_direct_computation_with_scipy():
     rng = np.random.default_rng(7)
-    a_images, b_images = noisy(rng, 3), noisy(rng, 5, scale=2.0)
+    a_images, b_images = noisy(rng, 3), noisy(rng, 5, shift=0.01)
     result = pixel_welch(run_of(a_images, range(3)), run_of(b_images, range(10, 15)))
-    for r, c, ch in [(0, 0, 0), (1, 2, 1), (3, 3, 2)]:
+    chosen = set()
+    for r, c, ch in np.ndindex(result.statistic.shape):
         box = (slice(r * TILE, (r + 1) * TILE), slice(c * TILE, (c + 1) * TILE), ch)
         a, b = a_images[(slice(None), *box)], b_images[(slice(None), *box)]
-        va, vb = a.var(axis=0, ddof=1).sum(), b.var(axis=0, ddof=1).sum()
-        qa, qb = (a.var(axis=0, ddof=1) ** 2).sum(), (b.var(axis=0, ddof=1) ** 2).sum()
-        se2 = va / 3 + vb / 5
+        sa, sb = a.var(axis=0, ddof=1), b.var(axis=0, ddof=1)
+        s_both = np.concatenate([a, b]).var(axis=0, ddof=1)  # (4): each pixel over both sides' passes
+        separate, pooled = sa.sum() / 3 + sb.sum() / 5, s_both.sum() * (1 / 3 + 1 / 5)
+        if separate >= pooled:
+            se2, df = separate, separate**2 / ((sa**2).sum() / (9 * 2) + (sb**2).sum() / (25 * 4))
+        else:
+            se2, df = pooled, 7 * s_both.sum() ** 2 / (s_both**2).sum()
+        chosen.add(separate >= pooled)
         t = (a.sum(axis=(1, 2)).mean() - b.sum(axis=(1, 2)).mean()) / np.sqrt(se2)
-        df = se2**2 / (qa / (9 * 2) + qb / (25 * 4))
         assert result.statistic[r, c, ch] == pytest.approx(t, rel=1e-10)
         assert result.df[r, c, ch] == pytest.approx(df, rel=1e-10)
         assert result.pvalue[r, c, ch] == pytest.approx(2 * stats.t.sf(abs(t), df), rel=1e-8)
+    assert chosen == {True, False}  # both branches of (4) are checked
+
+
+def test_a_pixel_whose_passes_agree_on_each_side_does_not_fake_a_difference():
+    """A two-valued pixel (a light hit or not) equal in both passes of each side, different between them, has no
+    variance on either side: without (4) it alone made |t| = 62 on a rendered caustic."""
+    images = np.ones((4, SIZE, SIZE, 3))
+    images += np.random.default_rng(17).normal(0, 0.01, images.shape)
+    images[2:, 5, 5] = 76.4  # the test side's two passes both hit it, the reference's none
+    result = pixel_welch(run_of(images[:2], range(2)), run_of(images[2:], range(2, 4)))
+    assert abs(result.statistic[0, 0, 0]) < 2 and result.df[0, 0, 0] < 4
 
 
 def test_tile_channels_below_the_df_floor_keep_the_tile_test():
@@ -144,14 +160,19 @@ def test_tile_channels_below_the_df_floor_keep_the_tile_test():
 
 
 @pytest.mark.parametrize(("n_ref", "n_test"), [(2, 2), (3, 8)])
-def test_pvalues_are_uniform_under_h0_with_unequal_pixel_variances(n_ref, n_test):
+def test_pvalues_are_conservative_under_h0_with_unequal_pixel_variances(n_ref, n_test):
+    """(4) takes the larger of two estimates, each unbiased under H0: the p-values are at least uniform in the
+    tail the decisions use."""
     rng = np.random.default_rng(9 + n_ref)
     pvalues = []
     for _ in range(60):
         ref = run_of(1 + rng.normal(0, 1, (n_ref, SIZE, SIZE, 3)), range(n_ref))
         test = run_of(1 + rng.normal(0, 3, (n_test, SIZE, SIZE, 3)), range(100, 100 + n_test))
         pvalues.append(pixel_welch(ref, test).pvalue.ravel())
-    assert stats.kstest(np.concatenate(pvalues), "uniform").pvalue > 1e-3
+    pvalues = np.concatenate(pvalues)
+    for level in (0.01, 0.05, 0.2):
+        assert np.mean(pvalues <= level) <= level + 3 * np.sqrt(level / len(pvalues))
+    assert np.mean(pvalues <= 0.2) > 0.05  # not a test that never rejects
 
 
 def test_false_biased_rate_of_the_family_under_h0_is_within_its_bound():
@@ -175,6 +196,54 @@ def test_it_finds_at_two_passes_a_bias_the_tile_test_cannot():
     assert found == {"auto": 20, "off": 9}  # seeded: the tile test finds it in under half
 
 
+def paired_runs(rng, n, shift=0.0):
+    """Paired runs: the test's pass of a seed is the reference's plus independent zero-mean noise (and `shift`),
+    with the moments of each pixel's difference."""
+    ref_images = noisy(rng, n)
+    test_images = ref_images + shift + 0.3 * (rng.gamma(2.0, 0.5, ref_images.shape) - 1.0)
+    pairs = wc.PixelMoments.of_passes(test_images - ref_images)
+    return run_of(ref_images, range(n)), run_of(test_images, range(n)), pairs, ref_images, test_images
+
+
+def test_the_paired_statistic_equals_a_direct_computation_with_scipy():
+    ref, test, pairs, ref_images, test_images = paired_runs(np.random.default_rng(15), 3)
+    result = pixel_paired(wc.comparison.paired_differences(ref, test, pairs))
+    d = test_images - ref_images
+    for r, c, ch in [(0, 0, 0), (2, 1, 2)]:
+        box = d[:, r * TILE : (r + 1) * TILE, c * TILE : (c + 1) * TILE, ch]
+        s2, about_zero = box.var(axis=0, ddof=1), (box**2).mean(axis=0)  # (4): the larger, about 0 with n df
+        if about_zero.sum() > s2.sum():
+            t, df = (
+                box.sum(axis=(1, 2)).mean() / np.sqrt(about_zero.sum() / 3),
+                3 * about_zero.sum() ** 2 / (about_zero**2).sum(),
+            )
+        else:
+            t, df = box.sum(axis=(1, 2)).mean() / np.sqrt(s2.sum() / 3), 2 * s2.sum() ** 2 / (s2**2).sum()
+        assert -result.statistic[r, c, ch] == pytest.approx(t, rel=1e-10)  # the sign of welch_ttest: ref - test
+        assert result.df[r, c, ch] == pytest.approx(df, rel=1e-10)
+        assert result.pvalue[r, c, ch] == pytest.approx(2 * stats.t.sf(abs(t), df), rel=1e-8)
+
+
+def test_paired_runs_use_it_with_their_pairs_calibrated_and_with_power():
+    rng = np.random.default_rng(16)
+    false, found = 0, {"auto": 0, "off": 0}
+    for _ in range(200):
+        ref, test, pairs, *_ = paired_runs(rng, 2)
+        c = wc.compare(ref, test, 0.05, pixel_variance="auto", pairs=pairs)
+        assert c.test == "paired" and c.pixel_use.used
+        false += c.verdict.label == "biased"
+    assert false <= stats.binom.ppf(0.999, 200, 0.05)
+    for _ in range(20):
+        ref, test, pairs, *_ = paired_runs(rng, 2, shift=0.01)
+        for mode in found:
+            found[mode] += wc.compare(ref, test, 0.01, pixel_variance=mode, pairs=pairs).verdict.label == "biased"
+    assert found["auto"] >= 18 and found["off"] <= found["auto"] // 2
+    with pytest.raises(
+        wc.WelchInputError, match=r"^`pairs` must be the moments of the 2 paired passes' differences, got 3$"
+    ):
+        wc.compare(ref, test, pairs=wc.PixelMoments.of_passes(np.zeros((3, SIZE, SIZE, 3))))
+
+
 # -- where it is used ----------------------------------------------------------------------------------------
 
 
@@ -185,8 +254,8 @@ def test_it_finds_at_two_passes_a_bias_the_tile_test_cannot():
          "not Cycles passes rendered by this tool (vouch for the renderer with --pixel-variance on)"),
         ({"scene_id": "command:0123"},
          "not Cycles passes rendered by this tool (vouch for the renderer with --pixel-variance on)"),
-        ({"renderer_version": "4.5.4"},
-         "the sampling pattern TABULATED_SOBOL of Blender 4.5 is not measured independent"),
+        ({"renderer_version": "4.2.14"},
+         "the sampling pattern TABULATED_SOBOL of Blender 4.2 is not measured independent"),
         ({"sampling_pattern": "SOBOL_BURLEY"},
          "the sampling pattern SOBOL_BURLEY of Blender 5.0 is not measured independent"),
         ({"settings": {**CYCLES.settings, "cycles.scrambling_distance": 0.1}},
@@ -207,6 +276,10 @@ def test_eligible_records():
     one_spp = {"settings": {**CYCLES.settings, "cycles.auto_scrambling_distance": True}, "spp": 1}
     assert pixel_eligibility(dataclasses.replace(CYCLES, **one_spp)) is None  # changes nothing at 1 spp
     assert pixel_eligibility(dataclasses.replace(CYCLES, sampling_pattern="BLUE_NOISE")) is None
+    for release, pattern in (("5.2.3", "AUTOMATIC"), ("4.5.4", "TABULATED_SOBOL"), ("3.4.1", "SOBOL")):
+        assert (
+            pixel_eligibility(dataclasses.replace(CYCLES, renderer_version=release, sampling_pattern=pattern)) is None
+        )
 
 
 def test_why_it_did_not_run_is_said():
@@ -215,8 +288,8 @@ def test_why_it_did_not_run_is_said():
     assert wc.compare(ref, test, pixel_variance="off").pixel_use.reason == "off (--pixel-variance off)"
     same = run_of(noisy(rng, 3), range(3))
     assert wc.compare(ref, same).pixel_use is not None
-    assert wc.pixel_use(ref, same, "paired", "auto").reason == (
-        "the paired design needs each pixel's difference per seed, which the runs do not keep"
+    assert (
+        wc.pixel_use(ref, same, "paired", "auto").reason == "the paired runs' per-seed pixel differences were not kept"
     )
     plain = wc.TileStats.from_sums(test.sums, test.seeds, SIZE, SIZE, TILE, CYCLES)
     assert wc.pixel_use(ref, plain, "welch", "auto").reason == (
