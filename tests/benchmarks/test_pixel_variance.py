@@ -113,3 +113,21 @@ def test_quick_run_writes_its_csv_and_chart(tmp_path):
     scrambled = next(r for r in rows if r["kind"] == "dependence" and r["pool"] == "corner_scrambling")
     assert float(scrambled["d_median"]) > 10
     assert (tmp_path / "pixel_variance.png").stat().st_size > 0
+
+
+def test_the_calibration_study_runs_the_tool_and_shows_the_broken_settings_refused(tmp_path):
+    """`benchmarks.studies.pixel_calibration --quick`: `compare` and the check replays with --pixel-variance on the
+    pools' own records: the pixel test runs on Tabulated Sobol, the records refuse SOBOL_BURLEY and the scrambling
+    distance 0.1, and where the user vouches for the latter the tripwire refuses it."""
+    from benchmarks.studies import pixel_calibration
+
+    assert pixel_calibration.main(["--quick", "--out", str(tmp_path)]) == 0
+    rows = list(csv.DictReader((tmp_path / "pixel_calibration.csv").open()))
+    cell = {(r["pool"], r["design"], r["mode"]): r for r in rows}
+    assert {r["kind"] for r in rows} == {"fixed", "sequential"}
+    assert cell["corner", "2 v 2", "auto"]["pixel_used"] == cell["corner", "2 v 2", "auto"]["trials"]
+    assert cell["corner", "check, budget 16", "auto"]["pixel_used"] != "0"
+    for pool in ("corner_burley", "corner_scrambling"):
+        assert all(cell[pool, d, "auto"]["pixel_used"] == "0" for d in ("2 v 2", "8 v 8", "check, budget 16"))
+    assert all(cell["corner_scrambling", d, "on"]["pixel_used"] == "0" for d in ("2 v 2", "4 v 16"))
+    assert (tmp_path / "pixel_calibration.png").stat().st_size > 10_000
