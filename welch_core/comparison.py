@@ -410,7 +410,7 @@ def compare(
     finest = scales[0]
     if outcome.deterministic:
         p_value = 0.0
-    use = pixel_share(use, tests[0])
+    use = pixel_share(use, tests)
     return dataclasses.replace(
         finest, p_value=p_value, scales=scales, uncovered=uncovered, outcome=outcome, pixel_use=use
     )
@@ -425,12 +425,11 @@ def differences_of(ref: TileStats, test: TileStats, kind: str, pairs: PixelMomen
     return paired_differences(ref, test, pairs)
 
 
-def pixel_share(use: PixelUse, finest: TileTest) -> PixelUse:
-    """`use` with the share of the finest scale's valid tile-channels the pixel test decided."""
-    if finest.pixel is None:
-        return use
-    valid = finest.result.reason == Reason.VALID
-    return dataclasses.replace(use, share=float(finest.pixel[valid].mean()) if valid.any() else 0.0)
+def pixel_share(use: PixelUse, tests) -> PixelUse:
+    """`use` with the share of the valid tile-channels of every scale (`tests`) that the pixel test decided."""
+    decided = [(t.pixel[t.result.reason == Reason.VALID]) for t in tests if t.pixel is not None]
+    valid = np.concatenate(decided) if decided else np.zeros(0, bool)
+    return dataclasses.replace(use, share=float(valid.mean()) if valid.size else 0.0)
 
 
 def selftest(ref: TileStats, alpha: float = 0.01) -> Comparison | None:

@@ -357,7 +357,7 @@ def sequential_look(
         p_value=best[1],
         threshold=best[2],
         crossed=crossed,
-        pixel_use=pixel_share(use, tests[0]),
+        pixel_use=pixel_share(use, tests),
     )
 
 

@@ -252,7 +252,7 @@ class PixelUse:
     mode: str  # one of PIXEL_MODES
     used: bool
     reason: str  # one line: what allowed it, or what stopped it
-    share: float = 0.0  # of the finest scale's valid tile-channels that the pixel test decided
+    share: float = 0.0  # of the valid tile-channels of every scale that the pixel test decided
     ratio: float = float("nan")  # the tripwire's measure
 
     def to_json(self) -> dict:

@@ -19,6 +19,7 @@ from ..jobs.launch import THREADS_ENV
 from ..jobs.lock import OutputLock, output_folder
 from ..jobs.loop import Arrival, Run, render_loop, resumed
 from ..jobs.overrides import apply_overrides, parse_override
+from ..jobs.pairs import save_pass_image
 from ..jobs.passes import add_layered_pass, add_pass
 from ..jobs.protocol import ChunkRequest, parse_request
 from ..jobs.rna import render_size
@@ -150,7 +151,8 @@ def render_run(job: RenderJob, progress: Progress, requests=None) -> wc.TileStat
             todo = [seed for seed in job.seeds if seed not in done]
             progress.start(len(job.seeds) - len(todo), job.out)
             if requests is None:
-                render_passes(renderer, todo, stats, progress, job.on_nan, job.out, job.checkpoint_every, stop, layers)
+                render_passes(renderer, todo, stats, progress, job.on_nan, job.out, job.checkpoint_every, stop, layers,
+                              job.pass_images)  # fmt: skip
             else:
                 for request in requests:
                     if isinstance(request, ChunkRequest):
@@ -158,7 +160,8 @@ def render_run(job: RenderJob, progress: Progress, requests=None) -> wc.TileStat
                         continue
                     count = request
                     chunk, todo = todo[: max(count, 0)], todo[max(count, 0) :]
-                    render_passes(renderer, chunk, stats, progress, job.on_nan, job.out, len(chunk) + 1, stop, layers)
+                    render_passes(renderer, chunk, stats, progress, job.on_nan, job.out, len(chunk) + 1, stop, layers,
+                                  job.pass_images)  # fmt: skip
                     wc.save_stats(job.out, stats, layers)
                     progress.emit(protocol.Saved(out=job.out, passes=stats.n))
                     if not todo:
@@ -216,18 +219,20 @@ def render_passes(
     checkpoint_every: int = 8,
     stop=None,
     layers: dict[str, wc.TileStats] | None = None,
+    pass_images: str | None = None,
 ) -> None:
     """Render `seeds` into `stats` (and `layers`, each pass's light components and light groups) through the one
     render loop (`batch.jobs.loop.render_loop`): `out` saved every `checkpoint_every` passes, at the end and on
-    interruption.
+    interruption; each pass's image also into the folder `pass_images` where given (`batch.jobs.pairs`).
 
     `stop`, if given, is asked between passes whether to stop (raising KeyboardInterrupt, as Ctrl-C does).
     """
     run = Run(out, (), stats, layers)
-    render_loop(_rendered(renderer, seeds, run, progress, on_nan, stop), run, progress, checkpoint_every)
+    rendered = _rendered(renderer, seeds, run, progress, on_nan, stop, pass_images)
+    render_loop(rendered, run, progress, checkpoint_every)
 
 
-def _rendered(renderer, seeds, run: Run, progress: Progress, on_nan: str, stop) -> Iterator[Arrival]:
+def _rendered(renderer, seeds, run: Run, progress: Progress, on_nan: str, stop, pass_images=None) -> Iterator[Arrival]:
     """Each pass of `seeds` as it is rendered here, added to `run` at once (a skipped one, `on_nan`, arrives not
     at all)."""
     for seed in seeds:
@@ -237,13 +242,17 @@ def _rendered(renderer, seeds, run: Run, progress: Progress, on_nan: str, stop) 
         try:
             if run.layers:
                 images = renderer.render_layers(seed)
+                image = images["combined"]
                 added = add_layered_pass(run.stats, run.layers, images, seed, on_nan, progress.warning)
             else:
-                added = add_pass(run.stats, renderer.render(seed), seed, on_nan, progress.warning)
+                image = renderer.render(seed)
+                added = add_pass(run.stats, image, seed, on_nan, progress.warning)
         except wc.WelchInputError as exc:
             # --on-nan answers non-finite pixels only: another size or layer set is no pass of this run
             hint = " (use --on-nan skip or keep to go on)" if "non-finite" in str(exc) else ""
             raise RunError(f"{exc}{hint}") from None
+        if added and pass_images is not None:
+            save_pass_image(pass_images, seed, image)
         if added:
             # A command's first pass may have been rendered earlier, to learn the image size: its time counts.
             seconds = time.perf_counter() - start + getattr(renderer, "replayed_seconds", 0.0)

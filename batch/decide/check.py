@@ -27,6 +27,7 @@ from ..jobs import protocol
 from ..jobs.distributed import Cluster, ClusterSide, cluster
 from ..jobs.job import RenderJob
 from ..jobs.options import TEST_SIDE, default
+from ..jobs.pairs import PixelPairs
 from ..jobs.seeds import MAX_PASSES, parse_seeds
 from ..jobs.side import Side
 from ..present.progress import Progress
@@ -139,6 +140,8 @@ class Check:
         self.budget = job.max_passes
         self.render_seconds = 0.0
         self.last_look: tuple | None = None  # (the last look, both sides' statistics then): a live view's
+        self.pairs: PixelPairs | None = None  # each pixel's difference per seed (paired, `batch.jobs.pairs`)
+        self.pixel_pairs: wc.PixelMoments | None = None  # their moments at the last look
 
     # -- state on disk ---------------------------------------------------------------------------------------
 
@@ -303,6 +306,10 @@ class Check:
         Path(self.job.out).mkdir(parents=True, exist_ok=True)
         if self.job.resume:
             self._load_state()
+        elif self.job.reference.pass_images is not None:
+            PixelPairs.clear(self.job.out)  # a new check: nothing of an earlier one in this folder counts
+        if self.job.reference.pass_images is not None:
+            self.pairs = PixelPairs(self.job.out)
         self._save_state()  # before anything renders: a check stopped at once can still be resumed
         try:
             self._start()
@@ -329,7 +336,7 @@ class Check:
             n = self.looks[-1]["passes"]
             ref, test = (ref if self.job.fixed_reference else self._at(ref, n)), self._at(test, n)
             final = last.get("reason") != "futile"  # a futility stop is made again at the look where it was made
-            return wc.sequential_look(ref, test, self.plan, fractions, final=final, budget=self.budget), ref, test
+            return self._look(ref, test, fractions, final), ref, test
         if self.plan is None:
             yield from self._render_to(wc.looks.FIRST_LOOK)
             self._fix_budget()
@@ -344,9 +351,7 @@ class Check:
             ref, test = self._load()
             n = min(ref.n, test.n) if not self.job.fixed_reference else test.n
             fractions.append(self._fraction(n))
-            look = wc.sequential_look(
-                ref, test, self.plan, fractions, final=index == len(schedule) - 1, budget=self.budget
-            )
+            look = self._look(ref, test, fractions, index == len(schedule) - 1)
             self.looks.append(_look_record(look, self.render_seconds))
             self._save_state()
             bound = look.ruled_out if math.isfinite(look.ruled_out) else None
@@ -370,7 +375,14 @@ class Check:
         if not fractions:  # nothing looked at (resumed after the last look): the first look on what is there
             fractions = [self._fraction(min(ref.n, test.n))]
         # The budget is spent (or the time): the last look, as the final one.
-        return wc.sequential_look(ref, test, self.plan, fractions, final=True, budget=self.budget), ref, test
+        return self._look(ref, test, fractions, True), ref, test
+
+    def _look(self, ref: wc.TileStats, test: wc.TileStats, fractions, final: bool) -> wc.Look:
+        """The look at the sides' passes, with each pixel's paired differences where the check keeps them."""
+        paired = self.pairs is not None and ref.seeds == test.seeds
+        self.pixel_pairs = self.pairs.at(ref.seeds) if paired else None
+        return wc.sequential_look(ref, test, self.plan, fractions, final=final, budget=self.budget,
+                                  pairs=self.pixel_pairs)  # fmt: skip
 
     @staticmethod
     def _at(run: wc.TileStats, n: int) -> wc.TileStats:
@@ -402,7 +414,7 @@ def _plan_difference(stored: wc.SequentialPlan, planned: wc.SequentialPlan) -> s
 def _side_record(job: RenderJob) -> list[str]:
     """What must stay the same for a side to be resumed: its job's arguments, its statistics file by its name in
     the check's folder (the folder may be given another way, or moved)."""
-    return job.replace(resume=False, out=Path(job.out).name).to_argv()
+    return job.replace(resume=False, out=Path(job.out).name, pass_images=None).to_argv()
 
 
 def _reseeded(stored: list[str] | None, record: list[str]) -> bool:
@@ -471,14 +483,15 @@ def report_check(check: Check, look: wc.Look, ref: wc.TileStats, test: wc.TileSt
     layers = (wc.load_layers(job.reference.out, pixels=False), wc.load_layers(job.test.out, pixels=False))
     early = (check.plan.early, wc.looks.EARLY_PASSES)
     record = check_record(job, check.looks, check.plan.max_passes, look, early)
-    assessment = assess(look_comparison(job, ref, test), ref, test, outcome=look.outcome, check=record, layers=layers)
+    comparison = look_comparison(job, ref, test, check.pixel_pairs)
+    assessment = assess(comparison, ref, test, outcome=look.outcome, check=record, layers=layers)
     return write(job.out, assessment, ref, test), assessment
 
 
-def look_comparison(job: CheckJob, ref: wc.TileStats, test: wc.TileStats) -> wc.Comparison:
-    """The fixed-design comparison of a look's passes: what its map draws (descriptive; the look's own outcome is
-    the verdict)."""
-    return wc.compare(ref, test, job.alpha, tolerance=job.tolerance, pixel_variance=job.pixel_variance)
+def look_comparison(job: CheckJob, ref: wc.TileStats, test: wc.TileStats, pairs=None) -> wc.Comparison:
+    """The fixed-design comparison of a look's passes (`pairs`: their pixels' paired differences, where kept): what
+    its map draws (descriptive; the look's own outcome is the verdict)."""
+    return wc.compare(ref, test, job.alpha, tolerance=job.tolerance, pixel_variance=job.pixel_variance, pairs=pairs)
 
 
 #: Seeds a side may use under a time budget (the pass budget is fixed once the speed is known).
@@ -606,6 +619,10 @@ def check_job(request: CheckRequest) -> CheckJob:
         command=args.test_command or args.pass_command,
         **(common | own),
     )
+    if paired and args.pixel_variance != "off" and args.workers is None and args.scheduler is None:
+        # Each side also writes its passes' images: the pixel test of paired runs needs each pixel's difference.
+        reference = reference.replace(pass_images=PixelPairs.folder(out, "reference"))
+        test = test.replace(pass_images=PixelPairs.folder(out, "test"))
     if sides_identical(reference, test):
         raise BatchError(
             "the two sides are identical by construction (same scene, build, settings and seeds): every difference "

@@ -77,6 +77,7 @@ class RenderJob:
     python: str | None = None  # a Python whose environment has a bpy module (another release) to render in
     command: str | None = None  # a command that renders one pass into an EXR, instead of Cycles (batch.jobs.command)
     command_dir: str | None = None  # the folder the command runs in (default: the current one)
+    pass_images: str | None = None  # also write each pass's image here (a paired check's pixels, batch.jobs.pairs)
 
     def __post_init__(self):
         object.__setattr__(self, "seeds", tuple(self.seeds))
@@ -155,6 +156,7 @@ class RenderJob:
             python=getattr(args, "python", None),
             command=getattr(args, "pass_command", None),
             command_dir=getattr(args, "command_dir", None),
+            pass_images=getattr(args, "pass_images", None),
         )
 
     def to_argv(self) -> list[str]:
@@ -188,6 +190,8 @@ class RenderJob:
             argv += ["--command", self.command]
         if self.command_dir is not None:
             argv += ["--command-dir", self.command_dir]
+        if self.pass_images is not None:
+            argv += ["--pass-images", self.pass_images]
         return [*argv, "--out", self.out]
 
 
@@ -260,3 +264,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="save the statistics file every N passes (default 8)",
     )
     parser.add_argument("--out", required=True, metavar="STATS", help="statistics file to write (.npz)")
+    parser.add_argument(
+        "--pass-images",
+        metavar="DIR",
+        help="also write each pass's RGB image into DIR as SEED.npy (float32): what a paired check folds into each "
+        "pixel's difference per seed for the pixel-variance test",
+    )

@@ -247,7 +247,7 @@ def method(
         )
     if pixels and pixels["used"]:
         text += (
-            f"; {pixels['share']:.0%} of the tile-channels with a test take their variance from their pixels' "
+            f"; {pixels['share']:.0%} of the tile-channels (every size) take their variance from their pixels' "
             f"variances (independent pixels: {pixels['reason']}; Satterthwaite's df, the tile sums' test where it "
             f"is below {pixels['min_df']:g})"
         )
@@ -272,7 +272,8 @@ def pixel_line(pixels: dict[str, Any] | None) -> str | None:
     if pixels is None or pixels["mode"] == "off":
         return None
     if pixels["used"]:
-        return f"pixel variances: {pixels['share']:.0%} of the tile-channels tested by them ({pixels['reason']})"
+        return (f"pixel variances: {pixels['share']:.0%} of the tile-channels of every size tested by them "
+                f"({pixels['reason']})")  # fmt: skip
     return f"pixel variances: not used, {pixels['reason']}; tile sums' variances everywhere"
 
 

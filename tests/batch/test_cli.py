@@ -161,7 +161,8 @@ def test_ingested_runs_use_the_pixel_variances_only_where_the_user_vouches(tmp_p
     on = ["compare", ref, brighter, "--out", str(tmp_path / "on"), "--pixel-variance", "on"]
     assert cli.main(on) == Exit.BIASED
     out = capsys.readouterr().out
-    share = r"  pixel variances: \d+% of the tile-channels tested by them \(vouched for \(--pixel-variance on\)\)\n"
+    share = (r"  pixel variances: \d+% of the tile-channels of every size tested by them "
+             r"\(vouched for \(--pixel-variance on\)\)\n")  # fmt: skip
     assert re.search(share, out)
     report = json.loads((tmp_path / "on" / "report.json").read_text())
     assert report["pixel_variance"]["used"] and report["pixel_variance"]["mode"] == "on"
