@@ -70,17 +70,18 @@ class CheckJob:
     workers: int | None = None
     scheduler: str | None = None
 
-    def plan(self, max_passes: int, early_share: float | None = None) -> wc.SequentialPlan:
+    def plan(self, max_passes: int, early_share: float | None = None, started: dict | None = None) -> wc.SequentialPlan:
         """The design for `max_passes`; a resumed check keeps the early share it was started with (None: the
-        default)."""
+        default), and one `started` (its stored plan) before the pixel-variance test existed goes on without it."""
         early = {} if early_share is None else {"early_share": early_share}
+        pixels = "off" if started is not None and "pixel_variance" not in started else self.pixel_variance
         return wc.SequentialPlan(
             max_passes=max_passes,
             alpha=self.alpha,
             tolerance=self.tolerance,
             equivalence_tile=self.equivalence_tile,
             futility=self.futility,
-            pixel_variance=self.pixel_variance,
+            pixel_variance=pixels,
             **early,
         )
 
@@ -189,13 +190,13 @@ class Check:
         stored = None
         if state.get("plan") is not None:  # None: stopped before a time budget became a pass budget
             try:
-                # a check started before the early design existed goes on without it
-                stored = wc.SequentialPlan(**{"early_share": 0.0, **state["plan"]})
+                # a check started before the early design or the pixel-variance test existed goes on without them
+                stored = wc.SequentialPlan(**{"early_share": 0.0, "pixel_variance": "off", **state["plan"]})
             except (KeyError, TypeError, wc.WelchInputError) as exc:
                 raise BatchError(f"{path} is not a readable check state ({exc})") from None
         budget = state.get("budget") or (stored.max_passes if stored is not None else None)
         if stored is not None and state.get("max_seconds") is None and self.job.max_seconds is None:
-            planned = self.job.plan(stored.max_passes, stored.early_share)  # the stored design; the budget may grow
+            planned = self.job.plan(stored.max_passes, stored.early_share, state["plan"])  # the budget may grow
             if planned != stored:
                 raise BatchError(
                     f"can't resume {self.job.out}: it was started with {_plan_difference(stored, planned)}"
@@ -207,7 +208,9 @@ class Check:
                 )
             budget = self._grown_budget(stored, budget)
         else:
-            planned = self.job.plan(stored.max_passes, stored.early_share) if stored is not None else None
+            planned = (
+                self.job.plan(stored.max_passes, stored.early_share, state["plan"]) if stored is not None else None
+            )
             if planned != stored or state.get("max_seconds") != self.job.max_seconds or grown:
                 raise BatchError(
                     f"can't resume {self.job.out}: it was started with another budget, alpha or tolerance"
@@ -483,15 +486,17 @@ def report_check(check: Check, look: wc.Look, ref: wc.TileStats, test: wc.TileSt
     layers = (wc.load_layers(job.reference.out, pixels=False), wc.load_layers(job.test.out, pixels=False))
     early = (check.plan.early, wc.looks.EARLY_PASSES)
     record = check_record(job, check.looks, check.plan.max_passes, look, early)
-    comparison = look_comparison(job, ref, test, check.pixel_pairs)
+    comparison = look_comparison(job, ref, test, check.pixel_pairs, check.plan.pixel_variance)
     assessment = assess(comparison, ref, test, outcome=look.outcome, check=record, layers=layers)
     return write(job.out, assessment, ref, test), assessment
 
 
-def look_comparison(job: CheckJob, ref: wc.TileStats, test: wc.TileStats, pairs=None) -> wc.Comparison:
-    """The fixed-design comparison of a look's passes (`pairs`: their pixels' paired differences, where kept): what
-    its map draws (descriptive; the look's own outcome is the verdict)."""
-    return wc.compare(ref, test, job.alpha, tolerance=job.tolerance, pixel_variance=job.pixel_variance, pairs=pairs)
+def look_comparison(job: CheckJob, ref, test, pairs=None, pixel_variance: str | None = None) -> wc.Comparison:
+    """The fixed-design comparison of a look's passes (`pairs`: their pixels' paired differences, where kept;
+    `pixel_variance`: the plan's, default the job's): what its map draws (descriptive; the look's own outcome is
+    the verdict)."""
+    pixels = pixel_variance or job.pixel_variance
+    return wc.compare(ref, test, job.alpha, tolerance=job.tolerance, pixel_variance=pixels, pairs=pairs)
 
 
 #: Seeds a side may use under a time budget (the pass budget is fixed once the speed is known).

@@ -9,6 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import welch_core as wc
@@ -199,3 +200,39 @@ def test_equivalent_out_of_reach_stops_early_names_what_the_budget_bounds_and_re
     assert refused.stderr.strip().endswith("it was started with the futility stop, not --no-futility"), refused.stderr
     full = check(*common, "--no-futility", "--out", tmp_path / "b", expect=3)
     assert json.loads((tmp_path / "b" / "check.json").read_text())["looks"][-1]["passes"] == 256, full.stdout
+
+
+@pytest.mark.slow
+def test_a_paired_check_tests_each_pixels_differences_and_finds_sooner(tmp_path):
+    """Two bounces instead of unlimited ones on the diffuse corner, paired: each side writes its passes' images,
+    the check folds them into the moments of each pixel's difference (their mean is the difference of the sides'
+    mean images), deletes them, and decides in fewer passes than with the tile sums alone."""
+    common = (*SMALL, "--set", "cycles.max_bounces=2", "--max-passes", 64)
+    check(*common, "--out", tmp_path / "pixels", expect=1)
+    check(*common, "--pixel-variance", "off", "--out", tmp_path / "tiles", expect=1)
+    report = json.loads((tmp_path / "pixels" / "report.json").read_text())
+    assert report["pixel_variance"]["used"] and report["test"] == "paired"
+    ref, test = (wc.load_stats(tmp_path / "pixels" / name) for name in ("reference.npz", "test.npz"))
+    with np.load(tmp_path / "pixels" / "pairs.npz") as pairs:
+        assert pairs["seeds"].tolist() == ref.seeds
+        np.testing.assert_allclose(pairs["mean"], test.pixels.mean - ref.pixels.mean, atol=1e-6)
+    assert not any((tmp_path / "pixels" / "pairs" / "test").iterdir())
+    assert not (tmp_path / "tiles" / "pairs.npz").exists()
+    passes = [json.loads((tmp_path / run / "check.json").read_text())["looks"][-1]["passes"] for run in ("pixels",
+              "tiles")]  # fmt: skip
+    assert passes[0] < passes[1]
+
+
+@pytest.mark.slow
+def test_a_check_started_before_the_pixel_test_resumes_without_it(tmp_path):
+    common = (*SMALL, "--unpaired", "--tolerance", "0.01%", "--out", tmp_path)
+    check(*common, "--max-passes", 18, expect=3)
+    state = json.loads((tmp_path / "check.json").read_text())
+    assert state["plan"]["pixel_variance"] == "auto"
+    del state["plan"]["pixel_variance"]
+    (tmp_path / "check.json").write_text(json.dumps(state))
+    done = check(*common, "--max-passes", 21, "--resume", expect=3)
+    state = json.loads((tmp_path / "check.json").read_text())
+    assert state["plan"]["pixel_variance"] == "off" and "pixel variances" not in done.stdout
+    done = check(*common, "--max-passes", 21, "--resume", "--pixel-variance", "on", expect=2)
+    assert "it was started with --pixel-variance off, not --pixel-variance on" in done.stderr
