@@ -19,7 +19,6 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from .._siblings import welch_core as wc
 from ..errors import BatchError
 from .lobes import LOBES, parse_lobes
 from .seeds import MAX_PASSES
@@ -35,6 +34,9 @@ MAX_TOLERANCE = 10.0
 #: The devices a job may ask for: the CPU, the first GPU backend that has a device, or one backend.
 GPU_BACKENDS = ("OPTIX", "CUDA", "HIP", "METAL", "ONEAPI")
 DEVICES = ("CPU", "GPU", *GPU_BACKENDS)
+#: The pixel-variance test's modes (`welch_core.PIXEL_MODES`; spelled here so that the add-on's registration, which
+#: reads these declarations, imports nothing of the statistics; a test holds the two equal).
+PIXEL_MODES = ("auto", "on", "off")
 #: What a pass with NaN or inf pixels does to a run (`batch.jobs.passes`).
 ON_NAN = ("stop", "skip", "keep")
 
@@ -576,7 +578,7 @@ OPTIONS = {
             "independent, scrambling distance 1), on to vouch for another renderer, off for the tile test "
             "everywhere; unpaired runs only",
             default="auto",
-            choices=wc.PIXEL_MODES,
+            choices=PIXEL_MODES,
             uses=dict.fromkeys(("check", "compare", "case"), _USE),
         ),
         Option(

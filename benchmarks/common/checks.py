@@ -33,11 +33,19 @@ def budget(pool, paired: bool) -> int:
 
 
 def one_run(ref, test, ref_order, test_order, plan: wc.SequentialPlan, tile: int = BASE_TILE) -> dict:
-    """One simulated `check`: the passes a side and the verdict where it stopped, and what the last look saw."""
+    """One simulated `check`: the passes a side and the verdict where it stopped, and what the last look saw.
+    With the plan's pixel-variance test, each look's statistics keep their pixel moments and paired runs get each
+    pixel's differences over the look's seeds, as `check` folds them (`batch.jobs.pairs`)."""
     fractions, look, n = [], None, 0
+    pixels = plan.pixel_variance != "off"
     for n in wc.look_schedule(plan.max_passes):
         fractions.append(min(n / plan.max_passes, 1.0))
-        look = wc.sequential_look(ref.stats(ref_order[:n], tile), test.stats(test_order[:n], tile), plan, fractions)
+        a, b = ref.stats(ref_order[:n], tile, pixels), test.stats(test_order[:n], tile, pixels)
+        pairs = None
+        if pixels and a.seeds == b.seeds:
+            order = np.sort(ref_order[:n])  # the statistics' pixel moments are of the sorted positions as well
+            pairs = wc.PixelMoments.of_passes(np.asarray(test.images[order], float) - ref.images[order])
+        look = wc.sequential_look(a, b, plan, fractions, pairs=pairs)
         if look.verdict is not None:
             break
     verdict = look.outcome.verdict.label  # the last look is the final one: decided

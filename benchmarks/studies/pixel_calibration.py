@@ -45,16 +45,6 @@ FULL = {"trials": 400, "runs": 400, "quick": False}
 QUICK = {"trials": 8, "runs": 4, "quick": True}
 
 
-class WithPixels:
-    """A pool whose statistics keep their pixel moments (the shape `checks.one_run` asks for)."""
-
-    def __init__(self, pool):
-        self.pool, self.n = pool, pool.n
-
-    def stats(self, indices, tile: int) -> wc.TileStats:
-        return self.pool.stats(indices, tile, pixels=True)
-
-
 def fixed_rows(name: str, label: str, pool, trials: int) -> list[dict]:
     modes = ("auto", "off", "on") if name in UNPROVEN else ("auto", "off")
     rows = []
@@ -77,11 +67,10 @@ def fixed_rows(name: str, label: str, pool, trials: int) -> list[dict]:
 def sequential_row(name: str, label: str, pool, runs: int) -> dict:
     plan = wc.SequentialPlan(max_passes=BUDGET, alpha=ALPHA, test_kind="welch", pixel_variance="auto")
     rng = np.random.default_rng(zlib.crc32(f"{name} sequential".encode()))
-    source = WithPixels(pool)
     verdicts = []
     for _ in range(runs):
         perm = rng.permutation(pool.n)
-        verdicts.append(checks.one_run(source, source, perm[: pool.n // 2], perm[pool.n // 2 :], plan)["verdict"])
+        verdicts.append(checks.one_run(pool, pool, perm[: pool.n // 2], perm[pool.n // 2 :], plan)["verdict"])
     # How often the looks' last comparison used the pixel test: its record and data decide it at every look alike.
     sample = pool.stats(np.arange(BUDGET), TILE, pixels=True), pool.stats(np.arange(BUDGET, 2 * BUDGET), TILE, True)
     used = wc.pixel_use(*sample, "welch", "auto").used

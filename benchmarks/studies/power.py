@@ -41,9 +41,11 @@ from ..common.trials import ALPHA, compare_verdicts, draw_paired, draw_unpaired
 
 #: The goals of issue 20: median passes to `biased` within these multiples of the best fixed design and the oracle.
 GOAL_FIXED, GOAL_ORACLE = 1.25, 1.5
-#: The designs simulated: (key in the CSV, early share): the defaults (`SequentialPlan`'s default share), and the
-#: design before the early one.
-DESIGNS = (("check", wc.SequentialPlan.early_share), ("previous", 0.0))
+#: The designs simulated: (key in the CSV, early share, pixel-variance test): the defaults with the tile sums alone
+#: (`SequentialPlan`'s default share), the design before the early one, and the defaults with the pixel-variance
+#: test on each pool's own record (`--pixel-variance auto`, the tool's default).
+DESIGNS = (("check", wc.SequentialPlan.early_share, "off"), ("previous", 0.0, "off"),
+           ("pixels", wc.SequentialPlan.early_share, "auto"))  # fmt: skip
 FULL = {"runs": 200, "trials": 200, "aa_runs": 200, "plan": plan.FULL, "sparse_pool": plan.SPARSE_POOL}
 QUICK = {"runs": 4, "trials": 6, "aa_runs": 3, "plan": None, "sparse_pool": plan.SPARSE_QUICK_POOL}
 #: The sparse cases `check` finds within a 640-pass pool (the subsurface clamp is not found by any method there).
@@ -127,10 +129,12 @@ def oracle_passes(ref, test, paired: bool, trials: int, seed: int, tile: int = 1
     return first_passing(pass_grid(checks.budget(ref, paired)), rate)
 
 
-def check_runs(ref, test, paired: bool, runs: int, early_share: float, seed: int) -> list[dict]:
-    """`runs` simulated checks at the defaults, with the early design's share `early_share`."""
+def check_runs(ref, test, paired: bool, runs: int, early_share: float, seed: int, pixels: str = "off") -> list[dict]:
+    """`runs` simulated checks at the defaults, with the early design's share `early_share` and the pixel-variance
+    test `pixels`."""
     max_passes = checks.budget(ref, paired)
-    design = wc.SequentialPlan(max_passes=max_passes, alpha=ALPHA, tolerance=checks.TOLERANCE, early_share=early_share)
+    design = wc.SequentialPlan(max_passes=max_passes, alpha=ALPHA, tolerance=checks.TOLERANCE, early_share=early_share,
+                               pixel_variance=pixels)  # fmt: skip
     return checks.run_many(ref, test, paired, runs, design, np.random.default_rng(seed))
 
 
@@ -148,8 +152,8 @@ def case_rows(case: dict, budget: dict) -> list[dict]:
         oracle = oracle_passes(ref, test, paired, budget["trials"], seed)
         row = {"case": case["name"], "label": case["label"], "test": mode, "budget": checks.budget(ref, paired),
                "oracle_passes": oracle, "fixed_passes": fixed, "fixed_method": method}  # fmt: skip
-        for key, share in DESIGNS:
-            runs = check_runs(ref, test, paired, budget["runs"], share, seed)
+        for key, share, pixels in DESIGNS:
+            runs = check_runs(ref, test, paired, budget["runs"], share, seed, pixels)
             to_biased = [r["passes"] if r["verdict"] == "biased" else np.inf for r in runs]
             median, p80 = checks.percentile(to_biased, 0.5), checks.percentile(to_biased, 0.8)
             row |= {f"{key}_runs": len(runs), f"{key}_biased": sum(r["verdict"] == "biased" for r in runs),
@@ -159,7 +163,8 @@ def case_rows(case: dict, budget: dict) -> list[dict]:
         rows.append(row)
         say(f"  {case['name']} {mode}: oracle {oracle}, best fixed {fixed} ({method}); check median/p80 "
             f"{row['check_median']}/{row['check_p80']}, without the early design "
-            f"{row['previous_median']}/{row['previous_p80']}")  # fmt: skip
+            f"{row['previous_median']}/{row['previous_p80']}, with the pixel test "
+            f"{row['pixels_median']}/{row['pixels_p80']}")  # fmt: skip
     return rows
 
 
@@ -172,8 +177,8 @@ def aa_rows(budget: dict, cache: Path) -> list[dict]:
         ref, test = load_or_render(pair["ref"], cache), load_or_render(pair["test"], cache)
         row = {"case": pair["name"], "label": pair["label"], "test": "paired" if pair["paired"] else "unpaired",
                "budget": checks.budget(ref, pair["paired"])}  # fmt: skip
-        for key, share in DESIGNS:
-            runs = check_runs(ref, test, pair["paired"], budget["aa_runs"], share, seed=7)
+        for key, share, pixels in DESIGNS:
+            runs = check_runs(ref, test, pair["paired"], budget["aa_runs"], share, 7, pixels)
             eq = [r["passes"] for r in runs if r["verdict"] == "equivalent"]
             row |= {f"{key}_runs": len(runs), f"{key}_equivalent": len(eq),
                     f"{key}_equivalent_median": checks.percentile(eq, 0.5),
@@ -182,7 +187,8 @@ def aa_rows(budget: dict, cache: Path) -> list[dict]:
         say(f"  A/A {pair['name']}: equivalent {row['check_equivalent']}/{row['check_runs']} (median "
             f"{row['check_equivalent_median']} passes), biased {row['check_biased']}; without the early design "
             f"{row['previous_equivalent']} (median {row['previous_equivalent_median']}), "
-            f"biased {row['previous_biased']}")  # fmt: skip
+            f"biased {row['previous_biased']}; with the pixel test {row['pixels_equivalent']} (median "
+            f"{row['pixels_equivalent_median']}), biased {row['pixels_biased']}")  # fmt: skip
     return rows
 
 
@@ -195,7 +201,8 @@ def chart(rows: list[dict], path: Path) -> None:
     series = (("oracle_passes", "oracle (told the bias pattern)", "#2ca02c", "D"),
               ("fixed_passes", "best fixed design in hindsight (80 %)", "#7f7f7f", "s"),
               ("previous_median", "check without the early design (median)", "#1f77b4", "x"),
-              ("check_median", "check (median)", "#d62728", "o"))  # fmt: skip
+              ("check_median", "check, tile sums (median)", "#d62728", "o"),
+              ("pixels_median", "check with the pixel-variance test (median)", "#9467bd", "^"))  # fmt: skip
     for key, label, color, marker in series:
         y = [np.nan if r[key] is None else r[key] for r in rows]
         axes[0].plot(x, y, marker, color=color, label=label, ms=7, mfc="none" if marker == "D" else color)
@@ -204,6 +211,7 @@ def chart(rows: list[dict], path: Path) -> None:
     axes[0].legend(fontsize=8)
     axes[0].grid(alpha=0.3, which="both", axis="y", lw=0.4)
     for key, label, color, marker in (("check_median_vs_fixed", "check / best fixed", "#d62728", "o"),
+                                      ("pixels_median_vs_fixed", "with the pixel test / best fixed", "#9467bd", "^"),
                                       ("check_median_vs_oracle", "check / oracle", "#2ca02c", "D"),
                                       ("previous_median_vs_fixed", "without the early design / best fixed",
                                        "#1f77b4", "x")):  # fmt: skip

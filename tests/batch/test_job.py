@@ -38,6 +38,7 @@ FULL = RenderJob(
     checkpoint_every=3,
     blender="/opt/blender-4.5/blender",
     lobes=("diffuse", "glossy", "lightgroups"),
+    pass_images="/runs/out dir/pairs/test",
 )
 #: The same job rendered by another release's bpy instead of a Blender binary (the two exclude each other).
 FULL_PYTHON = dataclasses.replace(FULL, blender=None, python="/root/.cache/welch-bias/bpy/4.5.4/bin/python")

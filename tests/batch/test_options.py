@@ -158,3 +158,10 @@ def test_the_suite_table_takes_the_declared_limits(tmp_path):
         write_suite(tmp_path, header="[suite]\nalpha = 1.0\n")
     with pytest.raises(BatchError, match=r"\[suite\] tolerance must be a percentage"):
         write_suite(tmp_path, header=f'[suite]\ntolerance = "{OPTIONS["tolerance"].high * 100:g}%"\n')
+
+
+def test_the_pixel_variance_modes_are_the_statistics_ones():
+    import welch_core as wc
+    from batch.jobs import options
+
+    assert options.OPTIONS["pixel_variance"].choices == options.PIXEL_MODES == wc.PIXEL_MODES

@@ -32,8 +32,8 @@ class SyntheticPool:
         self.n = passes
         self.spec = SimpleNamespace(key=f"{key}-{shift}-{seed}", resolution=SIZE)
 
-    def stats(self, indices, tile):
-        assert tile == TILE
+    def stats(self, indices, tile, pixels=False):
+        assert tile == TILE and not pixels  # tile sums only: no pixels to keep moments of
         indices = np.asarray(indices)
         return wc.TileStats.from_sums(self.sums[indices], [self.seeds[i] for i in indices], SIZE, SIZE, TILE)
 
