@@ -12,11 +12,19 @@ random passes of one pool on the two sides):
   records do not prove independent pixels, also "on" (the user vouches), where the tripwire must refuse them;
 * `check`'s stopping rule: `welch_core.sequential_look` at every look of `look_schedule` up to a budget of
   `BUDGET` passes a side (tolerance 1 %, futility on: a run stops at `biased`, `equivalent`, futility or the
-  budget, as `benchmarks.common.checks` replays `check`), with ``pixel_variance`` auto.
+  budget, as `benchmarks.common.checks` replays `check`), with ``pixel_variance`` auto;
+* paired A/A: two unbiased sampling patterns of one scene rendered with the same seeds (`PAIRED`: one expected
+  image, each pass's pixels paired by seed, each pixel's difference folded as `check` folds it), fixed at 2, 3, 4
+  and 8 passes and under the stopping rule;
+* `equivalent` where it is false: the test side is the pool's other passes scaled by 1 + tolerance (every tile
+  off by exactly the tolerance), the tolerance chosen per pool as the smallest of `TOLERANCES` at which half of
+  the A/A trials at 48 v 48 end `equivalent` with the pixel test (where the claim is within reach; `equivalent`
+  needs 44 passes a side); at 48 v 48 with the pixel test on and off, and under the stopping rule with a budget of
+  `EQUIVALENCE_BUDGET` on the first two pools (`equivalence_runs` runs).
 
-Each cell: `biased` in `trials` runs with its 95 % Wilson interval, and how often the pixel test ran (the tripwire
-or the record refused it otherwise). The issue's criterion: rate <= 1.5 alpha with the interval's lower end below
-alpha, alpha = 0.01.
+Each cell: the verdict it must not give (`biased` under H0, `equivalent` at the tolerance) in `trials` runs with
+its 95 % Wilson interval, and how often the pixel test ran (the tripwire or the record refused it otherwise). The
+issue's criterion: rate <= 1.5 alpha with the interval's lower end below alpha, alpha = 0.01.
 """
 
 from __future__ import annotations
@@ -41,8 +49,16 @@ FIXED = ((2, 2), (3, 3), (4, 4), (8, 8), (2, 8), (4, 16))
 BUDGET = 16
 #: Pools whose records do not prove independent pixels: also run with "on", the user vouching for them.
 UNPROVEN = ("corner_burley", "corner_glass_burley", "corner_scrambling")
-FULL = {"trials": 400, "runs": 400, "quick": False}
-QUICK = {"trials": 8, "runs": 4, "quick": True}
+#: Paired A/A pools: (reference, test, label), both rendered with seeds from 0.
+PAIRED = (("corner", "corner_blue", "diffuse corner, Sobol v blue noise"),
+          ("corner_glass", "corner_glass_blue", "glass caustic, Sobol v blue noise"))  # fmt: skip
+PAIRED_FIXED = (2, 3, 4, 8)
+#: The pools, tolerances, passes and budget of the `equivalent` rows.
+EQUIVALENCE_POOLS = ("corner", "corner_glass", "glossy", "textured")
+TOLERANCES = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5)
+EQUIVALENCE_PASSES, EQUIVALENCE_BUDGET = 48, 64
+FULL = {"trials": 400, "runs": 400, "equivalence_runs": 200, "quick": False}
+QUICK = {"trials": 8, "runs": 4, "equivalence_runs": 2, "quick": True}
 
 
 def fixed_rows(name: str, label: str, pool, trials: int) -> list[dict]:
@@ -78,7 +94,84 @@ def sequential_row(name: str, label: str, pool, runs: int) -> dict:
                runs if used else 0, runs)  # fmt: skip
 
 
+def paired_rows(pools: dict, trials: int, runs: int) -> list[dict]:
+    rows = []
+    for ref_name, test_name, label in PAIRED:
+        ref, test = pools[ref_name], pools[test_name]
+        common = min(ref.n, test.n)
+        name = f"{ref_name}+{test_name}"
+        for n in PAIRED_FIXED:
+            rng = np.random.default_rng(zlib.crc32(f"{name} {n}".encode()))
+            biased, used = {"auto": 0, "off": 0}, {"auto": 0, "off": 0}
+            for _ in range(trials):
+                seeds = np.sort(rng.choice(common, n, replace=False))
+                a, b = ref.stats(seeds, TILE, pixels=True), test.stats(seeds, TILE, pixels=True)
+                pairs = wc.PixelMoments.of_passes(np.asarray(test.images[seeds], float) - ref.images[seeds])
+                for mode in biased:
+                    c = wc.compare(a, b, ALPHA, "paired", pixel_variance=mode, pairs=pairs)
+                    biased[mode] += c.verdict.label == "biased"
+                    used[mode] += c.pixel_use.used
+            rows += [row("paired", name, label, f"{n} paired", m, biased[m], used[m], trials) for m in biased]
+        plan = wc.SequentialPlan(max_passes=BUDGET, alpha=ALPHA, test_kind="paired", pixel_variance="auto")
+        rng = np.random.default_rng(zlib.crc32(f"{name} sequential".encode()))
+        verdicts = []
+        for _ in range(runs):
+            perm = rng.permutation(common)
+            verdicts.append(checks.one_run(ref, test, perm, perm, plan)["verdict"])
+        rows.append(row("paired sequential", name, label, f"check paired, budget {BUDGET}", "auto",
+                        verdicts.count("biased"), runs, runs))  # fmt: skip
+        say(f"  {label}: paired, worst {max(r['biased'] for r in rows[-9:])} of {trials}")
+    return rows
+
+
+class Scaled:
+    """A pool whose passes are scaled by `factor`: a bias of exactly factor - 1 in every tile."""
+
+    def __init__(self, pool, factor: float):
+        self.pool, self.factor, self.n = pool, factor, pool.n
+
+    def stats(self, indices, tile: int, pixels: bool = False) -> wc.TileStats:
+        run, f = self.pool.stats(indices, tile, pixels), self.factor
+        moments = None if run.pixels is None else wc.PixelMoments.of(run.pixels.mean * f, run.pixels.m2 * f * f, run.n)
+        return wc.TileStats.from_sums(run.sums * f, run.seeds, run.height, run.width, tile, run.info, pixels=moments)
+
+
+def equivalence_rows(name: str, label: str, pool, trials: int, runs: int) -> list[dict]:
+    half, n = pool.n // 2, min(EQUIVALENCE_PASSES, pool.n // 2)
+    rng = np.random.default_rng(zlib.crc32(f"{name} equivalence".encode()))
+    draws = [rng.permutation(pool.n) for _ in range(trials)]
+
+    def equivalent(tolerance, ref_pool, test_pool, mode, draws):
+        found = 0
+        for perm in draws:
+            ref, test = ref_pool.stats(perm[:n], TILE, True), test_pool.stats(perm[half : half + n], TILE, True)
+            c = wc.compare(ref, test, ALPHA, "welch", tolerance=tolerance, pixel_variance=mode)
+            found += c.verdict.label == "equivalent"
+        return found
+
+    reach = [t for t in TOLERANCES if equivalent(t, pool, pool, "auto", draws[:40]) >= 20]
+    if not reach:
+        return []
+    tolerance = reach[0]
+    scaled = Scaled(pool, 1.0 + tolerance)
+    rows = []
+    for mode in ("auto", "off"):
+        found = equivalent(tolerance, pool, scaled, mode, draws)
+        rows.append(row("equivalence", name, label, f"{n} v {n} at +{tolerance:.0%}", mode, found, 0, trials))
+    if runs and name in EQUIVALENCE_POOLS[:2]:
+        budget = min(EQUIVALENCE_BUDGET, half)
+        plan = wc.SequentialPlan(max_passes=budget, alpha=ALPHA, tolerance=tolerance, test_kind="welch",
+                                 pixel_variance="auto")  # fmt: skip
+        verdicts = [checks.one_run(pool, scaled, p[:half], p[half:], plan)["verdict"] for p in draws[:runs]]
+        rows.append(row("equivalence sequential", name, label, f"check at +{tolerance:.0%}, budget {budget}", "auto",
+                        verdicts.count("equivalent"), 0, len(verdicts)))  # fmt: skip
+    say(f"  {label}: `equivalent` at a bias of exactly {tolerance:.0%}: "
+        + ", ".join(f"{r['design']} {r['mode']} {r['biased']}/{r['trials']}" for r in rows))  # fmt: skip
+    return rows
+
+
 def row(kind, name, label, design, mode, biased, used, trials) -> dict:
+    """A cell: `biased` counts the verdict the design must not give (`equivalent` for the equivalence rows)."""
     low, high = wilson(biased, trials)
     ok = biased / trials <= 1.5 * ALPHA and low < ALPHA
     return {"kind": kind, "pool": name, "label": label, "design": design, "mode": mode, "biased": biased,
@@ -86,17 +179,25 @@ def row(kind, name, label, design, mode, biased, used, trials) -> dict:
             "meets": ok}  # fmt: skip
 
 
-def measure(budget: dict, cache) -> list[dict]:
-    rows = []
+def measure(budget: dict, cache, parts=("unpaired", "paired", "equivalence")) -> list[dict]:
+    rows, pools = [], {}
     for entry in POOLS:
         name, label = entry[0], entry[1]
-        pool = load(pool_spec(entry, budget["quick"]), cache, label)
+        pool = pools[name] = load(pool_spec(entry, budget["quick"]), cache, label)
+        if "unpaired" not in parts:
+            continue
         start = time.perf_counter()
         rows += fixed_rows(name, label, pool, budget["trials"])
         rows.append(sequential_row(name, label, pool, budget["runs"]))
         worst = max((r for r in rows if r["pool"] == name and r["mode"] != "off"), key=lambda r: r["rate"])
         say(f"  {label}: worst {worst['biased']}/{worst['trials']} ({worst['design']}, {worst['mode']}) "
             f"in {time.perf_counter() - start:.0f} s")  # fmt: skip
+    if "paired" in parts:
+        rows += paired_rows(pools, budget["trials"], budget["runs"])
+    if "equivalence" in parts:
+        labels = {entry[0]: entry[1] for entry in POOLS}
+        for name in EQUIVALENCE_POOLS:
+            rows += equivalence_rows(name, labels[name], pools[name], budget["trials"], budget["equivalence_runs"])
     return rows
 
 
