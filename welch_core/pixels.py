@@ -59,7 +59,6 @@ __all__ = [
     "PixelUse",
     "pixel_eligibility",
     "pixel_paired",
-    "pixel_terms",
     "pixel_use",
     "pixel_welch",
     "tripwire",
@@ -104,6 +103,8 @@ class PixelMoments:
         self.mean = np.zeros((height, width, channels))
         self.m2 = np.zeros((height, width, channels))
         self._scratch: tuple[np.ndarray, np.ndarray] | None = None
+        self._memo: dict = {}  # what `terms` computed at this n (every scale asks again)
+        self._merged: tuple | None = None  # (the other moments, their n, `merged` with them)
 
     @classmethod
     def of(cls, mean: npt.ArrayLike, m2: npt.ArrayLike, n: int) -> PixelMoments:
@@ -136,6 +137,8 @@ class PixelMoments:
         if self._scratch is None:  # two buffers kept between passes: no allocation per pass
             self._scratch = (np.empty(self.shape), np.empty(self.shape))
         delta, step = self._scratch
+        self._memo.clear()
+        self._merged = None
         self.n += 1
         np.subtract(x, self.mean, out=delta)
         np.multiply(delta, delta, out=step)  # Welford: M2 grows by delta² (n - 1) / n, the mean by delta / n
@@ -163,21 +166,45 @@ class PixelMoments:
             return np.full(self.shape, np.nan)
         return self.m2 / (self.n - 1)
 
+    def merged_with(self, other: PixelMoments) -> PixelMoments:
+        """`merged`, kept while neither changes (every scale of a comparison asks for it)."""
+        if self._merged is None or self._merged[0] is not other or self._merged[1] != other.n:
+            self._merged = (other, other.n, self.merged(other))
+        return self._merged[2]
 
-def pixel_terms(moments: PixelMoments, tile: int, grid: tuple[int, int], covered: tuple[int, int], about_zero=False):
-    """V = sum_p s_p² and Q = sum_p (s_p²)² per tile-channel of a `grid` of `tile`-pixel tiles over the `covered`
-    pixels (the right and bottom tiles partial where the tile does not divide them; a coarse scale's one tile may
-    be larger than the image), as in (1) and (3). `about_zero`: each pixel's second moment about 0 over its n
-    passes, sum x² / n, instead of s_p² (see (4))."""
-    ty, tx = grid
-    s2 = np.zeros((ty * tile, tx * tile, moments.shape[2]))
-    rows, cols = min(covered[0], ty * tile), min(covered[1], tx * tile)
-    if about_zero:
-        s2[:rows, :cols] = (moments.m2 / moments.n + moments.mean**2)[:rows, :cols]
-    else:
-        s2[:rows, :cols] = moments.variance()[:rows, :cols]
-    blocks = s2.reshape(ty, tile, tx, tile, -1)
-    return blocks.sum(axis=(1, 3)), (blocks * blocks).sum(axis=(1, 3))
+    def terms(self, tile: int, grid: tuple[int, int], covered: tuple[int, int], about_zero: bool = False):
+        """V = sum_p s_p² and Q = sum_p (s_p²)² per tile-channel of a `grid` of `tile`-pixel tiles over the
+        `covered` pixels (the right and bottom tiles partial where the tile does not divide them; a coarse scale's
+        one tile may be larger than the image), as in (1) and (3). `about_zero`: each pixel's second moment about 0
+        over its n passes, sum x² / n, instead of s_p² (see (4)). A coarser tile's terms are the block sums of a
+        finer one's already computed: the pixels are read once per comparison."""
+        grid, covered = tuple(grid), tuple(covered)
+        key = (tile, grid, covered, about_zero)
+        if key in self._memo:
+            return self._memo[key]
+        finer = [k for k in self._memo if k[2:] == (covered, about_zero) and k[0] < tile and tile % k[0] == 0]
+        if finer:
+            base = max(finer)
+            factor = tile // base[0]
+            self._memo[key] = tuple(_block_sums(a, factor, grid) for a in self._memo[base])
+            return self._memo[key]
+        s2 = np.zeros((grid[0] * tile, grid[1] * tile, self.shape[2]))
+        rows, cols = min(covered[0], grid[0] * tile), min(covered[1], grid[1] * tile)
+        if about_zero:
+            s2[:rows, :cols] = (self.m2 / self.n + self.mean**2)[:rows, :cols]
+        else:
+            s2[:rows, :cols] = self.variance()[:rows, :cols]
+        blocks = s2.reshape(grid[0], tile, grid[1], tile, -1)
+        self._memo[key] = blocks.sum(axis=(1, 3)), (blocks * blocks).sum(axis=(1, 3))
+        return self._memo[key]
+
+
+def _block_sums(values: np.ndarray, factor: int, grid: tuple[int, int]) -> np.ndarray:
+    """Sums of `factor` x `factor` blocks of a (rows, columns, channels) grid, the last blocks partial, as `grid`."""
+    padded = np.zeros((grid[0] * factor, grid[1] * factor, values.shape[2]))
+    rows, cols = min(values.shape[0], padded.shape[0]), min(values.shape[1], padded.shape[1])
+    padded[:rows, :cols] = values[:rows, :cols]
+    return padded.reshape(grid[0], factor, grid[1], factor, -1).sum(axis=(1, 3))
 
 
 def _replace_variance(result: TTestResult, se2, df, pvalue_method) -> TTestResult:
@@ -197,9 +224,9 @@ def pixel_welch(ref, test, pvalue_method: str = "exact") -> TTestResult:
     v_ref, q_ref = ref.pixel_terms()
     v_test, q_test = test.pixel_terms()
     result = welch_from_stats(ref.mean, v_ref, ref.n, test.mean, v_test, test.n, pvalue_method=pvalue_method)
-    both = ref.pixels.merged(test.pixels)  # (4): each pixel's variance over both sides' passes
+    both = ref.pixels.merged_with(test.pixels)  # (4): each pixel's variance over both sides' passes
     total = ref.n + test.n
-    v_both, q_both = pixel_terms(both, ref.tile, (ref.tiles_y, ref.tiles_x), ref.covered)
+    v_both, q_both = both.terms(ref.tile, (ref.tiles_y, ref.tiles_x), ref.covered)
     with np.errstate(divide="ignore", invalid="ignore"):
         a, b = v_ref / ref.n, v_test / test.n
         df = (a + b) ** 2 / (q_ref / (ref.n**2 * (ref.n - 1.0)) + q_test / (test.n**2 * (test.n - 1.0)))
@@ -215,7 +242,7 @@ def pixel_paired(differences, pvalue_method: str = "exact") -> TTestResult:
     V and Q of the differences' pixel variances, or of their second moments about 0 (n df) where larger."""
     v, q = differences.pixel_terms()
     n = differences.n
-    v0, q0 = pixel_terms(differences.pixels, differences.tile, differences.grid_shape[:2], differences.covered, True)
+    v0, q0 = differences.pixels.terms(differences.tile, differences.grid_shape[:2], differences.covered, True)
     result = paired_from_stats(differences.mean, v, n, pvalue_method=pvalue_method)
     with np.errstate(divide="ignore", invalid="ignore"):
         larger = v0 > v

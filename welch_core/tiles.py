@@ -26,7 +26,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import GridMismatchError, RunMismatchError, WelchInputError, check_int
-from .pixels import PixelMoments, pixel_terms
+from .pixels import PixelMoments
 
 __all__ = ["EDGES", "MAX_IMAGE_SIDE", "MAX_SPP", "RunInfo", "TileStats", "grid_size", "tile_row_blocks", "tile_sums"]
 
@@ -259,7 +259,6 @@ class TileStats:
         #: each pixel's moments over the passes (`welch_core.pixels`), where kept: a run of other passes (a subset,
         #: the whole image's channel sum) has none
         self.pixels = PixelMoments(self.height, self.width, self.channels) if keep_pixel_moments else None
-        self._terms: tuple[int, np.ndarray, np.ndarray] | None = None
 
     @classmethod
     def from_sums(
@@ -384,10 +383,7 @@ class TileStats:
         """V = sum_p s_p² and Q = sum_p (s_p²)² per tile-channel from the pixel moments (`welch_core.pixels`)."""
         if self.pixels is None:
             raise WelchInputError("this run keeps no pixel moments")
-        if self._terms is None or self._terms[0] != self._count:
-            v, q = pixel_terms(self.pixels, self.tile, (self.tiles_y, self.tiles_x), self.covered)
-            self._terms = (self._count, v, q)
-        return self._terms[1], self._terms[2]
+        return self.pixels.terms(self.tile, (self.tiles_y, self.tiles_x), self.covered)
 
     def _derived_moments(self) -> tuple[np.ndarray, np.ndarray]:
         if self._moments is None or self._moments[0] != self._count:

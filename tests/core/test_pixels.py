@@ -89,6 +89,15 @@ def test_pixel_terms_at_every_scale_are_the_block_sums_of_the_pixel_variances():
                 np.testing.assert_allclose(q[r, c], (block**2).sum(axis=(0, 1)), rtol=1e-12)
 
 
+def test_the_terms_kept_for_the_scales_follow_new_passes():
+    images = noisy(np.random.default_rng(18), 4)
+    run = run_of(images[:3], range(3))
+    before = run.retile(2).pixel_terms()[0].copy()
+    run.add_pass(images[3], 3)
+    np.testing.assert_allclose(run.retile(2).pixel_terms()[0], run_of(images, range(4)).retile(2).pixel_terms()[0])
+    assert not np.allclose(run.retile(2).pixel_terms()[0], before)
+
+
 def test_moments_survive_a_statistics_file_and_damaged_ones_are_refused(tmp_path):
     run = run_of(noisy(np.random.default_rng(5), 3), range(3))
     path = tmp_path / "run.npz"
