@@ -3,9 +3,10 @@
     python -m benchmarks.studies.pixel_calibration     # -> docs/benchmarks/pixel_calibration.{csv,png}
     python -m benchmarks.studies.pixel_calibration --quick --out /tmp/pc    # small pools, few trials: the pipeline
 
-A/A trials on the pools of `benchmarks.studies.pixel_variance` (64², 1 spp, rendered by the tool's own code; each
-pool's record is the run's: its sampling pattern and settings decide `--pixel-variance auto`), unpaired (disjoint
-random passes of one pool on the two sides):
+A/A trials on the pools of `benchmarks.studies.pixel_variance` and of every other built-in scene (`SCENES`: 64²,
+1 spp, Tabulated Sobol, 400 passes, rendered here where the cache lacks them), all rendered by the tool's own code
+(each pool's record is the run's: its sampling pattern and settings decide `--pixel-variance auto`), unpaired
+(disjoint random passes of one pool on the two sides):
 
 * fixed designs: `welch_core.compare` (every scale, Holm and KS, the permutation test where the counts differ) at
   2 v 2, 3 v 3, 4 v 4, 8 v 8, 2 v 8 and 4 v 16 passes, with ``pixel_variance`` auto and off; on the settings whose
@@ -49,6 +50,13 @@ FIXED = ((2, 2), (3, 3), (4, 4), (8, 8), (2, 8), (4, 16))
 BUDGET = 16
 #: Pools whose records do not prove independent pixels: also run with "on", the user vouching for them.
 UNPROVEN = ("corner_burley", "corner_glass_burley", "corner_scrambling")
+#: The other built-in scenes (batch.jobs.job.BUILTIN_SCENES): (name, label, scene, overrides, pattern, passes in
+#: the full run, passes in the quick run, rendered by this study), as `pixel_variance.POOLS`.
+SCENES = tuple(
+    (scene, scene.replace("_", " "), scene, (), "TABULATED_SOBOL", 400, 40, True)
+    for scene in ("corner_mesh_light", "glossy_rough", "glossy_sharp", "many_lights", "environment", "volume",
+                  "volume_noise", "sss", "depth_of_field", "motion_blur", "hair")
+)  # fmt: skip
 #: Paired A/A pools: (reference, test, label), both rendered with seeds from 0.
 PAIRED = (("corner", "corner_blue", "diffuse corner, Sobol v blue noise"),
           ("corner_glass", "corner_glass_blue", "glass caustic, Sobol v blue noise"))  # fmt: skip
@@ -181,7 +189,7 @@ def row(kind, name, label, design, mode, biased, used, trials) -> dict:
 
 def measure(budget: dict, cache, parts=("unpaired", "paired", "equivalence")) -> list[dict]:
     rows, pools = [], {}
-    for entry in POOLS:
+    for entry in (*POOLS, *SCENES):
         name, label = entry[0], entry[1]
         pool = pools[name] = load(pool_spec(entry, budget["quick"]), cache, label)
         if "unpaired" not in parts:
