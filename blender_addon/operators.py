@@ -56,7 +56,7 @@ def show_look(context, run: runner.CheckRun) -> None:
     look, reference, test = taken
     check = checking()
     sources = {"reference": run.job.reference.out, "test": run.job.test.out}
-    comparison = check.look_comparison(run.job, reference, test)
+    comparison = check.look_comparison(run.job, reference, test, run.check.pixel_pairs, run.check.plan.pixel_variance)
     assessment = presenting().assess(comparison, reference, test, names=tuple(sources.values()), outcome=look.outcome)
     results.store(assessment, reference, test, sources)
     show(context)
