@@ -51,7 +51,7 @@ def one_run(ref, test, ref_order, test_order, plan: wc.SequentialPlan, tile: int
     verdict = look.outcome.verdict.label  # the last look is the final one: decided
     ruled_out = look.ruled_out if np.isfinite(look.ruled_out) else None
     return {"passes": n, "verdict": verdict, "ruled_out": ruled_out, "ruled_out_tile": look.ruled_out_tile,
-            "uncovered": look.uncovered, "looks": len(fractions)}  # fmt: skip
+            "uncovered": look.uncovered, "looks": len(fractions), "pixels": look.pixel_use.used}  # fmt: skip
 
 
 def run_many(ref, test, paired: bool, runs: int, plan: wc.SequentialPlan, rng, tile: int = BASE_TILE) -> list[dict]:

@@ -51,7 +51,12 @@ class PoolSpec:
     def key(self) -> str:
         revision = SCENE_REVISIONS.get(self.scene)  # a scene rebuilt on its own (its pools render again)
         extra = () if revision is None else (f"revision {revision}",)
-        return digest(asdict(self), metadata.version("bpy"), _scenes_digest(), *extra)
+        return digest(asdict(self), metadata.version("bpy"), _scenes_digest(), *extra, *SEEDS)
+
+
+#: How a pass's seed becomes Cycles' seed (`batch.blender.render.cycles_seed`): the pools rendered before it used
+#: Cycles' seeds as they were, so they render again.
+SEEDS = ("cycles_seed 1",)
 
 
 @functools.cache

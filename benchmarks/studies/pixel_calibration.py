@@ -17,6 +17,10 @@ A/A trials on the pools of `benchmarks.studies.pixel_variance` and of every othe
 * paired A/A: two unbiased sampling patterns of one scene rendered with the same seeds (`PAIRED`: one expected
   image, each pass's pixels paired by seed, each pixel's difference folded as `check` folds it), fixed at 2, 3, 4
   and 8 passes and under the stopping rule;
+* `check`'s own seeds: runs of consecutive seeds as `check --unpaired` renders them (the reference's from 0, the
+  test's from 1 000 000; replicate r takes the r-th block of `BUDGET` seeds of each), replayed in that order, pixel
+  test on and off (`CONSECUTIVE`; 32² pools of `BUDGET` x `replicates` passes, rendered here): the design a
+  random draw from a pool would hide a correlation between consecutive seeds from;
 * `equivalent` where it is false: the test side is the pool's other passes scaled by 1 + tolerance (every tile
   off by exactly the tolerance), the tolerance chosen per pool as the smallest of `TOLERANCES` at which half of
   the A/A trials at 48 v 48 end `equivalent` with the pixel test (where the claim is within reach; `equivalent`
@@ -40,7 +44,7 @@ import welch_core as wc
 from ..common import checks
 from ..common.cache import study_arguments
 from ..common.plotting import save, write_csv
-from ..common.pools import say
+from ..common.pools import PoolSpec, say
 from ..common.trials import wilson
 from .pixel_variance import POOLS, load, pool_spec
 
@@ -61,12 +65,15 @@ SCENES = tuple(
 PAIRED = (("corner", "corner_blue", "diffuse corner, Sobol v blue noise"),
           ("corner_glass", "corner_glass_blue", "glass caustic, Sobol v blue noise"))  # fmt: skip
 PAIRED_FIXED = (2, 3, 4, 8)
+#: Scenes rendered in runs of consecutive seeds (`consecutive_rows`), at this resolution, and the test side's first
+#: seed (`batch.decide.check.UNPAIRED_SEEDS`).
+CONSECUTIVE, CONSECUTIVE_RESOLUTION, TEST_SEEDS = ("corner", "corner_glass"), 32, 1_000_000
 #: The pools, tolerances, passes and budget of the `equivalent` rows.
 EQUIVALENCE_POOLS = ("corner", "corner_glass", "glossy", "textured")
 TOLERANCES = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5)
 EQUIVALENCE_PASSES, EQUIVALENCE_BUDGET = 48, 64
-FULL = {"trials": 400, "runs": 400, "equivalence_runs": 200, "quick": False}
-QUICK = {"trials": 8, "runs": 4, "equivalence_runs": 2, "quick": True}
+FULL = {"trials": 400, "runs": 400, "equivalence_runs": 200, "replicates": 400, "quick": False}
+QUICK = {"trials": 8, "runs": 4, "equivalence_runs": 2, "replicates": 3, "quick": True}
 
 
 def fixed_rows(name: str, label: str, pool, trials: int) -> list[dict]:
@@ -91,15 +98,17 @@ def fixed_rows(name: str, label: str, pool, trials: int) -> list[dict]:
 def sequential_row(name: str, label: str, pool, runs: int) -> dict:
     plan = wc.SequentialPlan(max_passes=BUDGET, alpha=ALPHA, test_kind="welch", pixel_variance="auto")
     rng = np.random.default_rng(zlib.crc32(f"{name} sequential".encode()))
-    verdicts = []
+    done = []
     for _ in range(runs):
         perm = rng.permutation(pool.n)
-        verdicts.append(checks.one_run(pool, pool, perm[: pool.n // 2], perm[pool.n // 2 :], plan)["verdict"])
-    # How often the looks' last comparison used the pixel test: its record and data decide it at every look alike.
-    sample = pool.stats(np.arange(BUDGET), TILE, pixels=True), pool.stats(np.arange(BUDGET, 2 * BUDGET), TILE, True)
-    used = wc.pixel_use(*sample, "welch", "auto").used
-    return row("sequential", name, label, f"check, budget {BUDGET}", "auto", verdicts.count("biased"),
-               runs if used else 0, runs)  # fmt: skip
+        done.append(checks.one_run(pool, pool, perm[: pool.n // 2], perm[pool.n // 2 :], plan))
+    return sequential(name, label, f"check, budget {BUDGET}", "auto", done)
+
+
+def sequential(name, label, design, mode, done: list[dict], verdict: str = "biased") -> dict:
+    """The row of simulated checks `done`: how many ended `verdict`, how many took the pixel test at their end."""
+    found = sum(run["verdict"] == verdict for run in done)
+    return row("sequential", name, label, design, mode, found, sum(run["pixels"] for run in done), len(done))
 
 
 def paired_rows(pools: dict, trials: int, runs: int) -> list[dict]:
@@ -122,13 +131,30 @@ def paired_rows(pools: dict, trials: int, runs: int) -> list[dict]:
             rows += [row("paired", name, label, f"{n} paired", m, biased[m], used[m], trials) for m in biased]
         plan = wc.SequentialPlan(max_passes=BUDGET, alpha=ALPHA, test_kind="paired", pixel_variance="auto")
         rng = np.random.default_rng(zlib.crc32(f"{name} sequential".encode()))
-        verdicts = []
-        for _ in range(runs):
-            perm = rng.permutation(common)
-            verdicts.append(checks.one_run(ref, test, perm, perm, plan)["verdict"])
-        rows.append(row("paired sequential", name, label, f"check paired, budget {BUDGET}", "auto",
-                        verdicts.count("biased"), runs, runs))  # fmt: skip
+        done = [checks.one_run(ref, test, perm, perm, plan) for perm in (rng.permutation(common) for _ in range(runs))]
+        rows.append(
+            sequential(name, label, f"check paired, budget {BUDGET}", "auto", done) | {"kind": "paired sequential"}
+        )
         say(f"  {label}: paired, worst {max(r['biased'] for r in rows[-9:])} of {trials}")
+    return rows
+
+
+def consecutive_rows(cache, replicates: int) -> list[dict]:
+    rows = []
+    for scene in CONSECUTIVE:
+        passes = BUDGET * replicates
+        ref, test = (load(PoolSpec(scene, (), CONSECUTIVE_RESOLUTION, passes=passes, first_seed=first), cache, scene)
+                     for first in (0, TEST_SEEDS))  # fmt: skip
+        for mode in ("auto", "off"):
+            plan = wc.SequentialPlan(max_passes=BUDGET, alpha=ALPHA, test_kind="welch", pixel_variance=mode)
+            blocks = [np.arange(r * BUDGET, (r + 1) * BUDGET) for r in range(replicates)]
+            done = [checks.one_run(ref, test, block, block, plan) for block in blocks]
+            label = f"{scene.replace('_', ' ')}, {CONSECUTIVE_RESOLUTION}², consecutive seeds"
+            rows.append(sequential(f"{scene}_seeds", label, f"check, budget {BUDGET}", mode, done)
+                        | {"kind": "consecutive"})  # fmt: skip
+        say(
+            f"  {scene}, consecutive seeds: " + ", ".join(f"{r['mode']} {r['biased']}/{r['trials']}" for r in rows[-2:])
+        )
     return rows
 
 
@@ -150,29 +176,30 @@ def equivalence_rows(name: str, label: str, pool, trials: int, runs: int) -> lis
     draws = [rng.permutation(pool.n) for _ in range(trials)]
 
     def equivalent(tolerance, ref_pool, test_pool, mode, draws):
-        found = 0
+        """(`equivalent` verdicts, pixel test used) over `draws`."""
+        found = used = 0
         for perm in draws:
             ref, test = ref_pool.stats(perm[:n], TILE, True), test_pool.stats(perm[half : half + n], TILE, True)
             c = wc.compare(ref, test, ALPHA, "welch", tolerance=tolerance, pixel_variance=mode)
-            found += c.verdict.label == "equivalent"
-        return found
+            found, used = found + (c.verdict.label == "equivalent"), used + c.pixel_use.used
+        return found, used
 
-    reach = [t for t in TOLERANCES if equivalent(t, pool, pool, "auto", draws[:40]) >= 20]
+    reach = [t for t in TOLERANCES if equivalent(t, pool, pool, "auto", draws[:40])[0] >= 20]
     if not reach:
         return []
     tolerance = reach[0]
     scaled = Scaled(pool, 1.0 + tolerance)
     rows = []
     for mode in ("auto", "off"):
-        found = equivalent(tolerance, pool, scaled, mode, draws)
-        rows.append(row("equivalence", name, label, f"{n} v {n} at +{tolerance:.0%}", mode, found, 0, trials))
+        found, used = equivalent(tolerance, pool, scaled, mode, draws)
+        rows.append(row("equivalence", name, label, f"{n} v {n} at +{tolerance:.0%}", mode, found, used, trials))
     if runs and name in EQUIVALENCE_POOLS[:2]:
         budget = min(EQUIVALENCE_BUDGET, half)
         plan = wc.SequentialPlan(max_passes=budget, alpha=ALPHA, tolerance=tolerance, test_kind="welch",
                                  pixel_variance="auto")  # fmt: skip
-        verdicts = [checks.one_run(pool, scaled, p[:half], p[half:], plan)["verdict"] for p in draws[:runs]]
-        rows.append(row("equivalence sequential", name, label, f"check at +{tolerance:.0%}, budget {budget}", "auto",
-                        verdicts.count("equivalent"), 0, len(verdicts)))  # fmt: skip
+        done = [checks.one_run(pool, scaled, p[:half], p[half:], plan) for p in draws[:runs]]
+        design = f"check at +{tolerance:.0%}, budget {budget}"
+        rows.append(sequential(name, label, design, "auto", done, "equivalent") | {"kind": "equivalence sequential"})
     say(f"  {label}: `equivalent` at a bias of exactly {tolerance:.0%}: "
         + ", ".join(f"{r['design']} {r['mode']} {r['biased']}/{r['trials']}" for r in rows))  # fmt: skip
     return rows
@@ -187,7 +214,7 @@ def row(kind, name, label, design, mode, biased, used, trials) -> dict:
             "meets": ok}  # fmt: skip
 
 
-def measure(budget: dict, cache, parts=("unpaired", "paired", "equivalence")) -> list[dict]:
+def measure(budget: dict, cache, parts=("unpaired", "paired", "consecutive", "equivalence")) -> list[dict]:
     rows, pools = [], {}
     for entry in (*POOLS, *SCENES):
         name, label = entry[0], entry[1]
@@ -202,6 +229,8 @@ def measure(budget: dict, cache, parts=("unpaired", "paired", "equivalence")) ->
             f"in {time.perf_counter() - start:.0f} s")  # fmt: skip
     if "paired" in parts:
         rows += paired_rows(pools, budget["trials"], budget["runs"])
+    if "consecutive" in parts:
+        rows += consecutive_rows(cache, budget["replicates"])
     if "equivalence" in parts:
         labels = {entry[0]: entry[1] for entry in POOLS}
         for name in EQUIVALENCE_POOLS:
