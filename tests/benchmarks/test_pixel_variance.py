@@ -124,7 +124,12 @@ def test_the_calibration_study_runs_the_tool_and_shows_the_broken_settings_refus
     assert pixel_calibration.main(["--quick", "--out", str(tmp_path)]) == 0
     rows = list(csv.DictReader((tmp_path / "pixel_calibration.csv").open()))
     cell = {(r["pool"], r["design"], r["mode"]): r for r in rows}
-    assert {r["kind"] for r in rows} == {"fixed", "sequential"}
+    assert {r["kind"] for r in rows} == {"fixed", "sequential", "paired", "paired sequential", "consecutive"}
+    assert (
+        cell["corner+corner_blue", "2 paired", "auto"]["pixel_used"]
+        == cell["corner+corner_blue", "2 paired", "auto"]["trials"]
+    )
+    assert cell["corner_seeds", "check, budget 16", "auto"]["pixel_used"] != "0"  # check's own consecutive seeds
     assert cell["corner", "2 v 2", "auto"]["pixel_used"] == cell["corner", "2 v 2", "auto"]["trials"]
     assert cell["corner", "check, budget 16", "auto"]["pixel_used"] != "0"
     for pool in ("corner_burley", "corner_scrambling"):
