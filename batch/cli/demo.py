@@ -13,6 +13,7 @@ from .._siblings import welch_core as wc
 from ..blender.run import render_run
 from ..blender.scenes import WALL_COLOR_PATH
 from ..jobs.job import RenderJob
+from ..jobs.options import default
 from ..present.pipeline import lines, present
 from ..present.progress import Progress
 
@@ -43,7 +44,7 @@ def run_demo(out_dir: str, passes: int | None = None, resolution: int | None = N
         if os.path.exists(job.out):  # a demo always starts afresh
             os.remove(job.out)
         runs.append(render_run(job, Progress(len(job.seeds), label=label)))
-    result = wc.compare(*runs, alpha=0.01)
+    result = wc.compare(*runs, alpha=0.01, pixel_variance=default("pixel_variance", "compare"))
     report = present(out_dir, result, *runs, names=("corner, walls 0.20", "corner, walls 0.21"))
     print(
         f"demo: corner scene, walls 0.20 vs 0.21, {passes} passes of {DEMO_SPP} spp a side at {size}x{size} px, "
