@@ -4,7 +4,8 @@
     python -m benchmarks.studies.pixel_calibration --quick --out /tmp/pc    # small pools, few trials: the pipeline
 
 A/A trials on the pools of `benchmarks.studies.pixel_variance` and of every other built-in scene (`SCENES`: 64²,
-1 spp, Tabulated Sobol, 400 passes, rendered here where the cache lacks them), all rendered by the tool's own code
+1 spp, Tabulated Sobol and blue noise (= AUTOMATIC), 400 passes, rendered here where the cache lacks them), all
+rendered by the tool's own code
 (each pool's record is the run's: its sampling pattern and settings decide `--pixel-variance auto`), unpaired
 (disjoint random passes of one pool on the two sides):
 
@@ -57,9 +58,11 @@ UNPROVEN = ("corner_burley", "corner_glass_burley", "corner_scrambling")
 #: The other built-in scenes (batch.jobs.job.BUILTIN_SCENES): (name, label, scene, overrides, pattern, passes in
 #: the full run, passes in the quick run, rendered by this study), as `pixel_variance.POOLS`.
 SCENES = tuple(
-    (scene, scene.replace("_", " "), scene, (), "TABULATED_SOBOL", 400, 40, True)
+    (f"{scene}{suffix}", scene.replace("_", " ") + label, scene, (), pattern, 400, 40, True)
+    for suffix, label, pattern in (("", "", "TABULATED_SOBOL"), ("_blue", ", blue noise", "BLUE_NOISE"))
     for scene in ("corner_mesh_light", "glossy_rough", "glossy_sharp", "many_lights", "environment", "volume",
-                  "volume_noise", "sss", "depth_of_field", "motion_blur", "hair")
+                  "volume_noise", "sss", "depth_of_field", "motion_blur", "hair", *(("glossy", "textured")
+                  if pattern == "BLUE_NOISE" else ()))
 )  # fmt: skip
 #: Paired A/A pools: (reference, test, label), both rendered with seeds from 0.
 PAIRED = (("corner", "corner_blue", "diffuse corner, Sobol v blue noise"),

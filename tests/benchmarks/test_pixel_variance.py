@@ -136,3 +136,29 @@ def test_the_calibration_study_runs_the_tool_and_shows_the_broken_settings_refus
         assert all(cell[pool, d, "auto"]["pixel_used"] == "0" for d in ("2 v 2", "8 v 8", "check, budget 16"))
     assert all(cell["corner_scrambling", d, "on"]["pixel_used"] == "0" for d in ("2 v 2", "4 v 16"))
     assert (tmp_path / "pixel_calibration.png").stat().st_size > 10_000
+
+
+@pytest.mark.slow
+def test_the_pixel_test_is_calibrated_on_a_rendered_caustic():
+    """Seeded A/A on 200 passes of the glass caustic rendered by the tool (64², 1 spp, Tabulated Sobol: skewed
+    pixels, fireflies): `compare` at 2 v 2 and 3 v 8 and `check`'s looks up to 8 passes a side with the pixel test
+    on the pool's own record, `biased` at most at the binomial bound of alpha 0.05."""
+    from benchmarks.common import checks
+    from benchmarks.common.cache import DEFAULT_DIR
+    from benchmarks.common.pools import PoolSpec, load_or_render
+
+    pool = load_or_render(PoolSpec("corner_glass", (), 64, passes=200), DEFAULT_DIR)
+    rng = np.random.default_rng(32)
+    bound = stats.binom.ppf(0.999, 150, 0.05)
+    for n_ref, n_test in ((2, 2), (3, 8)):
+        found = used = 0
+        for _ in range(150):
+            perm = rng.permutation(pool.n)
+            ref, test = pool.stats(perm[:n_ref], TILE, True), pool.stats(perm[100 : 100 + n_test], TILE, True)
+            c = wc.compare(ref, test, 0.05, "welch", pixel_variance="auto")
+            found, used = found + (c.verdict == wc.Verdict.BIASED), used + c.pixel_use.used
+        assert used == 150 and found <= bound, (n_ref, n_test, found)
+    plan = wc.SequentialPlan(max_passes=8, alpha=0.05, test_kind="welch", pixel_variance="auto")
+    runs = [checks.one_run(pool, pool, p[:100], p[100:], plan) for p in (rng.permutation(pool.n) for _ in range(150))]
+    assert all(run["pixels"] for run in runs)
+    assert sum(run["verdict"] == "biased" for run in runs) <= bound
