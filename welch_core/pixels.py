@@ -48,7 +48,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import WelchInputError
-from .ttest import Reason, TTestResult, paired_from_stats, pvalue_exact, welch_from_stats
+from .ttest import Reason, TTestResult, paired_from_stats, two_sided_pvalue, welch_from_stats
 
 __all__ = [
     "INDEPENDENT_PATTERNS",
@@ -208,13 +208,14 @@ def _block_sums(values: np.ndarray, factor: int, grid: tuple[int, int]) -> np.nd
 
 
 def _replace_variance(result: TTestResult, se2, df, pvalue_method) -> TTestResult:
-    """`result` with the squared standard error `se2`, its df, and the t and p that follow."""
+    """`result` with the squared standard error `se2`, its df, and the t and p (by `pvalue_method`) that follow."""
     valid = result.reason == Reason.VALID
     with np.errstate(divide="ignore", invalid="ignore"):
         se = np.sqrt(se2)
         t = np.where(valid, -result.mean_difference / se, np.nan)
     df = np.where(valid, df, np.nan)
-    p = np.where(valid, pvalue_exact(t, df), np.nan)
+    p = np.full(t.shape, np.nan)
+    p[valid] = two_sided_pvalue(t[valid], df[valid], pvalue_method)
     return dataclasses.replace(result, statistic=t, df=df, pvalue=p, standard_error=se)
 
 
@@ -323,9 +324,8 @@ def pixel_use(ref, test, kind: str, mode: str, differences=None) -> PixelUse:
     if kind == "paired" and (differences is None or differences.pixels is None):
         return PixelUse(mode, False, "the paired runs' per-seed pixel differences were not kept")
     if ref.pixels is None or test.pixels is None:
-        return PixelUse(
-            mode, False, "a run keeps no pixel moments (ingested, rendered on workers or before they were kept)"
-        )
+        why = "a run keeps no pixel moments (made before they were kept, or it kept a pass with non-finite pixels)"
+        return PixelUse(mode, False, why)
     if min(ref.n, test.n) < 2:
         return PixelUse(mode, False, "fewer than 2 passes a side")
     if mode == "auto":

@@ -452,8 +452,10 @@ class TileStats:
             bad = int((~np.isfinite(image[..., : self.channels])).sum())
             raise WelchInputError(f"pass with seed {seed} has {bad} non-finite pixel values")
         self._append(sums[None], [seed])
-        if self.pixels is not None:
+        if self.pixels is not None and np.isfinite(sums).all():
             self.pixels.add(image)
+        else:  # a kept pass with NaN or inf pixels: its pixels have no variance to speak of, the run keeps none
+            self.pixels = None
         if self._pixel_sum is not None:
             if self._count == 1 and self._pixel_sum.shape != image.shape:
                 # Sum all of the pass's channels (alpha too): a contiguous add is 5x faster than a strided one.

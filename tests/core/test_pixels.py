@@ -89,6 +89,17 @@ def test_pixel_terms_at_every_scale_are_the_block_sums_of_the_pixel_variances():
                 np.testing.assert_allclose(q[r, c], (block**2).sum(axis=(0, 1)), rtol=1e-12)
 
 
+def test_a_kept_pass_with_non_finite_pixels_ends_the_moments_and_the_file_still_loads(tmp_path):
+    images = noisy(np.random.default_rng(19), 3)
+    images[1, 0, 0, 0] = np.nan
+    run = wc.TileStats(SIZE, SIZE, TILE, 3, CYCLES, keep_pixel_moments=True)
+    for seed, image in enumerate(images):
+        run.add_pass(image, seed, allow_nonfinite=True)
+    assert run.pixels is None
+    wc.save_stats(tmp_path / "nan.npz", run)
+    assert wc.load_stats(tmp_path / "nan.npz").n == 3
+
+
 def test_the_terms_kept_for_the_scales_follow_new_passes():
     images = noisy(np.random.default_rng(18), 4)
     run = run_of(images[:3], range(3))
@@ -302,7 +313,7 @@ def test_why_it_did_not_run_is_said():
     )
     plain = wc.TileStats.from_sums(test.sums, test.seeds, SIZE, SIZE, TILE, CYCLES)
     assert wc.pixel_use(ref, plain, "welch", "auto").reason == (
-        "a run keeps no pixel moments (ingested, rendered on workers or before they were kept)"
+        "a run keeps no pixel moments (made before they were kept, or it kept a pass with non-finite pixels)"
     )
     other = run_of(noisy(rng, 3), range(3, 6), dataclasses.replace(CYCLES, renderer="mine", scene_id=""))
     use = wc.compare(ref, other, pixel_variance="auto").pixel_use
