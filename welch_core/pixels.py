@@ -24,9 +24,11 @@ estimate, and it sees such a pixel whatever its passes did:
     se² = max(V_ref / n_ref + V_test / n_test, V_both (1 / n_ref + 1 / n_test))                       (4)
 
 with V_both = sum_p of each pixel's variance over all n_ref + n_test passes (its df (3) with n_ref + n_test - 1 a
-pixel). Under H1 V_both also holds the difference, which costs a little power where the difference is large
-anyway. Paired runs test the per-seed differences d the same way: V / n, or the second moments about 0
-(sum_p sum d² / n, n df a pixel; unbiased under H0, where each pixel's d has mean 0) where larger.
+pixel), while the smaller side has at most `POOLED_UP_TO` passes. Under H1 V_both also holds each pixel's
+difference, which grows against the noise with the passes: past a few passes it would cost the power it exists
+to keep, and chance agreement has become rare. Paired runs test the per-seed differences d the same way: V / n,
+or the second moments about 0 (sum_p sum d² / n, n df a pixel; unbiased under H0, where each pixel's d has mean
+0) where larger.
 
 Hypothesis and family: per tile-channel H0 is that the two sides' expected tile sums are equal, as for the tile
 test; the pixel test replaces the tile test's p-value of a tile-channel and the family (`comparison`, `looks`) is
@@ -67,6 +69,12 @@ __all__ = [
 #: Below this Satterthwaite df (3) a tile-channel keeps the tile test: skewed pixels (measured: at 2 v 2 the
 #: glass caustic's false `biased` rate fell from 21 to 6 in 1000 with it).
 MIN_PIXEL_DF = 100.0
+
+#: (4) holds while the smaller side has at most this many passes: a pixel's few passes agreeing by chance is a risk
+#: of small counts (two-valued at even odds: 2 / 2^(2n) for both sides of n), and past them V_both would hold a
+#: real bias's per-pixel differences, which grow against the noise with the passes (Filter Glossy moves light
+#: between the pixels of a tile: at 512 passes a side (4) found nothing).
+POOLED_UP_TO = 8
 
 #: "auto": where the runs' records prove the settings (`pixel_eligibility`); "on": the user vouches for the renderer
 #: (an external one, or settings not measured), the tripwire still refuses; "off": the tile test everywhere.
@@ -225,14 +233,16 @@ def pixel_welch(ref, test, pvalue_method: str = "exact") -> TTestResult:
     v_ref, q_ref = ref.pixel_terms()
     v_test, q_test = test.pixel_terms()
     result = welch_from_stats(ref.mean, v_ref, ref.n, test.mean, v_test, test.n, pvalue_method=pvalue_method)
-    both = ref.pixels.merged_with(test.pixels)  # (4): each pixel's variance over both sides' passes
-    total = ref.n + test.n
-    v_both, q_both = both.terms(ref.tile, (ref.tiles_y, ref.tiles_x), ref.covered)
     with np.errstate(divide="ignore", invalid="ignore"):
         a, b = v_ref / ref.n, v_test / test.n
         df = (a + b) ** 2 / (q_ref / (ref.n**2 * (ref.n - 1.0)) + q_test / (test.n**2 * (test.n - 1.0)))
+    if min(ref.n, test.n) > POOLED_UP_TO:
+        return _replace_variance(result, a + b, df, pvalue_method)
+    both = ref.pixels.merged_with(test.pixels)  # (4): each pixel's variance over both sides' passes
+    v_both, q_both = both.terms(ref.tile, (ref.tiles_y, ref.tiles_x), ref.covered)
+    with np.errstate(divide="ignore", invalid="ignore"):
         pooled = v_both * (1.0 / ref.n + 1.0 / test.n)
-        pooled_df = (total - 1.0) * v_both**2 / q_both
+        pooled_df = (ref.n + test.n - 1.0) * v_both**2 / q_both
     larger = pooled > a + b
     return _replace_variance(result, np.where(larger, pooled, a + b), np.where(larger, pooled_df, df), pvalue_method)
 
@@ -243,8 +253,11 @@ def pixel_paired(differences, pvalue_method: str = "exact") -> TTestResult:
     V and Q of the differences' pixel variances, or of their second moments about 0 (n df) where larger."""
     v, q = differences.pixel_terms()
     n = differences.n
-    v0, q0 = differences.pixels.terms(differences.tile, differences.grid_shape[:2], differences.covered, True)
     result = paired_from_stats(differences.mean, v, n, pvalue_method=pvalue_method)
+    if n > POOLED_UP_TO:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return _replace_variance(result, v / n, (n - 1.0) * v**2 / q, pvalue_method)
+    v0, q0 = differences.pixels.terms(differences.tile, differences.grid_shape[:2], differences.covered, True)
     with np.errstate(divide="ignore", invalid="ignore"):
         larger = v0 > v
         se2 = np.where(larger, v0, v) / n

@@ -48,8 +48,8 @@ def paired_alone():
     untrusted (the "paired alone" of `benchmarks.studies.sparse`)."""
     original = wc.comparison.test_tiles
 
-    def without_welch(ref, test, kind, pvalue_method="exact"):
-        tested = original(ref, test, kind, pvalue_method)
+    def without_welch(ref, test, kind, pvalue_method="exact", pixels=False, pairs=None):
+        tested = original(ref, test, kind, pvalue_method, pixels, pairs)
         if tested.unpaired is None or not tested.unpaired.any():
             return tested
         diffs = wc.comparison.paired_differences(ref, test)

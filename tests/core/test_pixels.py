@@ -11,7 +11,15 @@ import pytest
 from scipy import stats
 
 import welch_core as wc
-from welch_core.pixels import MIN_PIXEL_DF, TRIPWIRE_RATIO, pixel_eligibility, pixel_paired, pixel_welch, tripwire
+from welch_core.pixels import (
+    MIN_PIXEL_DF,
+    POOLED_UP_TO,
+    TRIPWIRE_RATIO,
+    pixel_eligibility,
+    pixel_paired,
+    pixel_welch,
+    tripwire,
+)
 
 SIZE, TILE = 64, 16
 CYCLES = wc.RunInfo(
@@ -152,6 +160,22 @@ def test_the_statistic_equals_a_direct_computation_with_scipy():
         assert result.df[r, c, ch] == pytest.approx(df, rel=1e-10)
         assert result.pvalue[r, c, ch] == pytest.approx(2 * stats.t.sf(abs(t), df), rel=1e-8)
     assert chosen == {True, False}  # both branches of (4) are checked
+
+
+def test_past_a_few_passes_the_separate_estimate_alone_keeps_a_real_differences_power():
+    """A bias that moves light between a tile's pixels (blurring a highlight: up here, down there) adds each
+    pixel's difference to the variance over both sides' passes; past `POOLED_UP_TO` passes a side (4) no longer
+    applies, so more passes find more."""
+    rng = np.random.default_rng(20)
+    n = POOLED_UP_TO + 4
+    ref, test = noisy(rng, n), noisy(rng, n)
+    test[:, ::2] += 0.5  # every other row brighter, the next darker: the tile sums move by the odd rows alone
+    test[:, 1::2] -= 0.45
+    result = pixel_welch(run_of(ref, range(n)), run_of(test, range(100, 100 + n)))
+    a, b = ref[:, :TILE, :TILE, 0], test[:, :TILE, :TILE, 0]
+    se2 = a.var(axis=0, ddof=1).sum() / n + b.var(axis=0, ddof=1).sum() / n
+    t = (a.sum(axis=(1, 2)).mean() - b.sum(axis=(1, 2)).mean()) / np.sqrt(se2)
+    assert result.statistic[0, 0, 0] == pytest.approx(t, rel=1e-10)
 
 
 def test_a_pixel_whose_passes_agree_on_each_side_does_not_fake_a_difference():
