@@ -15,6 +15,8 @@ rendered by the tool's own code
 * `check`'s stopping rule: `welch_core.sequential_look` at every look of `look_schedule` up to a budget of
   `BUDGET` passes a side (tolerance 1 %, futility on: a run stops at `biased`, `equivalent`, futility or the
   budget, as `benchmarks.common.checks` replays `check`), with ``pixel_variance`` auto;
+* a blessed reference against a short run: 256 v 4, 256 v 8 and 4 v 256 passes of the caustic and the glossy room
+  (`UNEQUAL`), `compare` with its permutation test, pixel test on and off;
 * paired A/A: two unbiased sampling patterns of one scene rendered with the same seeds (`PAIRED`: one expected
   image, each pass's pixels paired by seed, each pixel's difference folded as `check` folds it), fixed at 2, 3, 4
   and 8 passes and under the stopping rule;
@@ -68,6 +70,8 @@ SCENES = tuple(
 PAIRED = (("corner", "corner_blue", "diffuse corner, Sobol v blue noise"),
           ("corner_glass", "corner_glass_blue", "glass caustic, Sobol v blue noise"))  # fmt: skip
 PAIRED_FIXED = (2, 3, 4, 8)
+#: Very unequal counts (reference, test) and the pools they are drawn from.
+UNEQUAL, UNEQUAL_POOLS = ((256, 4), (256, 8), (4, 256)), ("corner_glass", "glossy")
 #: Scenes rendered in runs of consecutive seeds (`consecutive_rows`), at this resolution, and the test side's first
 #: seed (`batch.decide.check.UNPAIRED_SEEDS`).
 CONSECUTIVE, CONSECUTIVE_RESOLUTION, TEST_SEEDS = ("corner", "corner_glass"), 32, 1_000_000
@@ -79,10 +83,12 @@ FULL = {"trials": 400, "runs": 400, "equivalence_runs": 200, "replicates": 400, 
 QUICK = {"trials": 8, "runs": 4, "equivalence_runs": 2, "replicates": 3, "quick": True}
 
 
-def fixed_rows(name: str, label: str, pool, trials: int) -> list[dict]:
+def fixed_rows(name: str, label: str, pool, trials: int, designs=FIXED, kind: str = "fixed") -> list[dict]:
     modes = ("auto", "off", "on") if name in UNPROVEN else ("auto", "off")
     rows = []
-    for n_ref, n_test in FIXED:
+    for n_ref, n_test in designs:
+        if max(n_ref, n_test) > pool.n // 2:
+            continue  # the quick pools are too small
         rng = np.random.default_rng(zlib.crc32(f"{name} {n_ref} {n_test}".encode()))
         biased, used = dict.fromkeys(modes, 0), dict.fromkeys(modes, 0)
         for _ in range(trials):
@@ -94,7 +100,7 @@ def fixed_rows(name: str, label: str, pool, trials: int) -> list[dict]:
                 biased[mode] += c.verdict.label == "biased"
                 used[mode] += c.pixel_use.used
         for mode in modes:
-            rows.append(row("fixed", name, label, f"{n_ref} v {n_test}", mode, biased[mode], used[mode], trials))
+            rows.append(row(kind, name, label, f"{n_ref} v {n_test}", mode, biased[mode], used[mode], trials))
     return rows
 
 
@@ -217,7 +223,7 @@ def row(kind, name, label, design, mode, biased, used, trials) -> dict:
             "meets": ok}  # fmt: skip
 
 
-def measure(budget: dict, cache, parts=("unpaired", "paired", "consecutive", "equivalence")) -> list[dict]:
+def measure(budget: dict, cache, parts=("unpaired", "unequal", "paired", "consecutive", "equivalence")) -> list[dict]:
     rows, pools = [], {}
     for entry in (*POOLS, *SCENES):
         name, label = entry[0], entry[1]
@@ -230,6 +236,12 @@ def measure(budget: dict, cache, parts=("unpaired", "paired", "consecutive", "eq
         worst = max((r for r in rows if r["pool"] == name and r["mode"] != "off"), key=lambda r: r["rate"])
         say(f"  {label}: worst {worst['biased']}/{worst['trials']} ({worst['design']}, {worst['mode']}) "
             f"in {time.perf_counter() - start:.0f} s")  # fmt: skip
+    if "unequal" in parts:
+        labels = {entry[0]: entry[1] for entry in POOLS}
+        for name in UNEQUAL_POOLS:
+            rows += fixed_rows(name, labels[name], pools[name], budget["trials"], UNEQUAL, "unequal")
+            say(f"  {labels[name]}: unequal counts, " + ", ".join(f"{r['design']} {r['mode']} {r['biased']}"
+                                                                  for r in rows[-6:]))  # fmt: skip
     if "paired" in parts:
         rows += paired_rows(pools, budget["trials"], budget["runs"])
     if "consecutive" in parts:
