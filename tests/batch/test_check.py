@@ -3,6 +3,7 @@ bad input refused before anything renders."""
 
 from __future__ import annotations
 
+import functools
 import json
 import signal
 import subprocess
@@ -97,7 +98,10 @@ def test_ctrl_c_keeps_everything_resume_continues_and_the_budget_grows(tmp_path)
     so that the interrupt lands long before the budget is spent however loaded the machine."""
     common = (*SMALL, "--unpaired", "--spp", 16, "--tolerance", "0.05%", "--no-futility", "--out", tmp_path)
     args = [sys.executable, "-m", "batch", "check", *map(str, common), "--max-passes", "200", "--json-progress"]
-    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # SIGINT as a terminal delivers it, whatever this process inherited (a background job of a non-interactive
+    # shell starts with SIGINT ignored, and Python then keeps ignoring it: the check would run to its budget).
+    reset = functools.partial(signal.signal, signal.SIGINT, signal.SIG_DFL)
+    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=reset)
     seen = 0
     for line in proc.stdout:
         if isinstance(protocol.parse(line), protocol.Looked):
