@@ -255,10 +255,7 @@ def test_tiles(
         result = paired_from_stats(diffs.mean, diffs.variance, diffs.n, pvalue_method=pvalue_method)
         use = np.zeros(result.pvalue.shape, bool)
         if pixels and diffs.pixels is not None:
-            by_pixels = pixel_paired(diffs, pvalue_method)
-            with np.errstate(invalid="ignore"):
-                use = (by_pixels.reason == Reason.VALID) & (by_pixels.df >= MIN_PIXEL_DF)
-            result = TTestResult(**{f: np.where(use, getattr(by_pixels, f), getattr(result, f)) for f in fields})
+            result, use = _take_pixels(result, pixel_paired(diffs, pvalue_method))
         # cov(d, r) per pass from Var(test) = Var(ref) + Var(d) + 2 cov(d, r), over the passes' count
         with np.errstate(invalid="ignore", divide="ignore"):
             cross = (test.variance - ref.variance - diffs.variance) / (2.0 * diffs.n)
@@ -282,12 +279,18 @@ def test_tiles(
     checked = min(ref.n, test.n) >= MIN_PASSES_FOR_NORMALITY
     if not pixels:
         return TileTest(kind, result, own, checked, ref.mean, ref_var, -ref_var)
-    by_pixels = pixel_welch(ref, test, pvalue_method)
-    with np.errstate(invalid="ignore"):
-        use = (by_pixels.reason == Reason.VALID) & (by_pixels.df >= MIN_PIXEL_DF)
-    result = TTestResult(**{f: np.where(use, getattr(by_pixels, f), getattr(result, f)) for f in fields})
+    result, use = _take_pixels(result, pixel_welch(ref, test, pvalue_method))
     ref_var = np.where(use, ref.pixel_terms()[0] / ref.n, ref_var)
     return TileTest(kind, result, own, checked, ref.mean, ref_var, -ref_var, pixel=use)
+
+
+def _take_pixels(result: TTestResult, by_pixels: TTestResult) -> tuple[TTestResult, np.ndarray]:
+    """`result` with the pixel test's `by_pixels` where that is valid with at least `MIN_PIXEL_DF` degrees of
+    freedom, and where that is."""
+    with np.errstate(invalid="ignore"):
+        use = (by_pixels.reason == Reason.VALID) & (by_pixels.df >= MIN_PIXEL_DF)
+    fields = (f.name for f in dataclasses.fields(TTestResult))
+    return TTestResult(**{f: np.where(use, getattr(by_pixels, f), getattr(result, f)) for f in fields}), use
 
 
 def paired_differences(ref: TileStats, test: TileStats, pairs: PixelMoments | None = None) -> TileStats:
