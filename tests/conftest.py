@@ -17,7 +17,7 @@ def blender52(tmp_path_factory):
     """A command that runs the root's Blender 5.2 in the caller's folder (chroot), with /tmp, /dev, /proc and this
     tree bind-mounted at their own paths for the time of the tests."""
     if not (SID_ROOT / ".ready").exists():
-        pytest.skip(f"no Blender 5.2 root at {SID_ROOT} (./dev test makes it as root)")
+        pytest.skip(f"no Blender 5.2 root at {SID_ROOT} (./dev test makes it as root from a Debian mirror)")
     if os.geteuid() != 0:
         pytest.skip("entering the Blender 5.2 root needs root (chroot, mount)")
     mounted = []
