@@ -12,17 +12,18 @@ Kolmogorov-Smirnov test of uniformity (Bonferroni over the two), and the scales 
 looks each tile-channel gets the Bonferroni share ``alpha / (S * m_s)`` of its scale, spent over the looks
 (`looks`). Either way P(``biased`` | H0) <= alpha.
 
-``equivalent`` rejects H0: "some tile-channel of the claim scale differs by at least the tolerance",
-|mu_test / mu_ref - 1| >= delta. The claim scale is the finest tested tile size unless the user names a coarser
-one. "Every tile is within +-delta" is an intersection-union statement (Berger 1982): it holds when each
-tile-channel's two one-sided tests reject at level alpha, that is when its (1 - 2 alpha) interval lies inside
-(-delta, delta), and no correction over tiles or channels is needed (the worst case is one tile at the boundary
-and all others deep inside, which is rejected with probability at most alpha). Over looks the interval is a
-repeated confidence interval for ``2 alpha`` spent over the looks (Jennison and Turnbull 2000, ch. 9), so the
-chance of ever calling a pair equivalent whose some tile is at the tolerance stays at most alpha (up to the chance
-of a path crossing both one-sided boundaries, which is negligible: see `looks`). The same reasoning makes the
-largest such bound over a scale's tiles a (1 - alpha) upper confidence bound on the largest |relative bias| of
-that scale: "a bias beyond B is ruled out in every tile" at each scale on its own.
+``equivalent`` rejects H0: "some tile-channel of the claim scale differs by at least the tolerance", |mu_test /
+mu_ref - 1| >= delta. The claim scale is the one the user names (`--equivalence-tile`), the one a check sized to its
+budget (below), or in a fixed design the finest tested tile size. "Every tile is within +-delta" is an
+intersection-union statement (Berger 1982): it holds when each tile-channel's two one-sided tests reject at level
+alpha, that is when its (1 - 2 alpha) interval lies inside (-delta, delta), and no correction over tiles or channels
+is needed (the worst case is one tile at the boundary and all others deep inside, which is rejected with probability
+at most alpha). Over looks the interval is a repeated confidence interval for ``2 alpha`` spent over the looks
+(Jennison and Turnbull 2000, ch. 9), so the chance of ever calling a pair equivalent whose some tile is at the
+tolerance stays at most alpha (up to the chance of a path crossing both one-sided boundaries, which is negligible:
+see `looks`). The same reasoning makes the largest such bound over a scale's tiles a (1 - alpha) upper confidence
+bound on the largest |relative bias| of that scale: "a bias beyond B is ruled out in every tile" at each scale on
+its own.
 
 A tile-channel counts as bounded only when it is tested and trusted (its Welch samples pass the normality
 check), or equal on both sides in every pass (zero variance: bounded at 0), and only once both sides have
@@ -49,19 +50,27 @@ test cannot reach the level at all (too few passes: 2 v 8 have 45 distinct split
 ``inconclusive``: with a tolerance, neither claim holds at the budget (the claim scale is not bounded yet: the
 outcome says where and how many passes would bound it); or too much of the image is testable at no scale.
 
-Futility (`check`, with a tolerance): from `FUTILITY_PASSES` passes a side on, a look projects from the variances
-alone, not the differences, the passes a side that would bound every tile-channel of each scale if the two sides
-had the same mean (`ScaleResult.projected`); when the claim scale's projection exceeds `FUTILITY_MARGIN` times the
-budget (or no number of test passes can reach it: a fixed reference too noisy for the tolerance), and nothing
-points to a bias (the smallest p-value of the `biased` family, Bonferroni-adjusted, above `FUTILITY_PROMISE`: the
-stop ends the search for `biased` too), the check stops ``inconclusive`` ("futile") and says which scales the
-budget can bound. A non-binding futility stop only
-ever turns a later verdict into ``inconclusive``: neither ``biased`` nor ``equivalent`` becomes more likely, so
-both error rates stay at most alpha; what it costs is the chance of a verdict the rest of the budget might have
-reached (measured in `benchmarks.studies.futility`).
+The claim's size (`check` without `--equivalence-tile`): the size the budget can bound, chosen at one early look
+from the variances alone (`welch_core.sizing`); a claim at that size S then needs every tile-channel of S and of
+every coarser size bounded, and where S is not bounded at the budget (or at a futility stop) the finest coarser
+size whose tiles and coarser ones are all bounded is claimed instead. Both keep P(``equivalent`` | some tile of
+the claimed size off by the tolerance) <= alpha, whatever size is chosen: see `welch_core.sizing`.
+
+Futility (`check`, with a tolerance): a look before the last, from `FUTILITY_PASSES` passes a side on, stops when
+the claim's size is out of the budget's reach at the current estimates (`ScaleResult.passes_needed` beyond the
+budget, or none) *and* no tile-channel could still reach `biased` by the budget with probability `FUTILITY_LOSS`
+if it held the bias the budget detects there with 80 % power (its minimum detectable bias): the largest
+conditional power over the tile-channels of the `biased` family (`Evidence.promise`, computed by
+`welch_core.looks.promise`). Stopping only then gives up at most `FUTILITY_LOSS` of the power against any such
+bias (each stop forgoes a rejection with conditional probability below it: Lan, Simon and Halperin 1982). The
+stop is non-binding and only ever turns a later verdict into ``inconclusive`` (or a coarser ``equivalent``,
+which the fixed-sequence rule above allows at any look), so neither error rate grows; what it saves and costs is
+measured in `benchmarks.studies.futility`.
 
 References: R. L. Berger, "Multiparameter hypothesis testing and acceptance sampling", Technometrics 24(4),
-1982; C. Jennison and B. W. Turnbull, "Group Sequential Methods with Applications to Clinical Trials", 2000.
+1982; C. Jennison and B. W. Turnbull, "Group Sequential Methods with Applications to Clinical Trials", 2000;
+K. K. G. Lan, R. Simon and M. Halperin, "Stochastically curtailed tests in long-term clinical trials", Sequential
+Analysis 1(3), 1982.
 """
 
 from __future__ import annotations
@@ -74,12 +83,15 @@ import numpy as np
 
 from .diagnostics import MIN_PASSES_FOR_NORMALITY
 from .effect import effect_sizes, relative_interval
+from .sizing import choose_claim, passes_to_bound
 from .ttest import Reason
 from .verdict import Verdict
 
 __all__ = [
+    "FUTILITY_LOSS",
     "IDENTICAL_SHARE",
     "MAX_UNTRUSTED_SHARE",
+    "Claim",
     "Difference",
     "Evidence",
     "Outcome",
@@ -97,18 +109,12 @@ MAX_UNTRUSTED_SHARE = 0.25
 #: the passes (or more) would have shown in one of them at 1 - alpha: (1 - share)^n <= alpha.
 IDENTICAL_SHARE = 0.1
 
-#: Futility of `equivalent` (`check`): from this many passes a side, a check whose claim scale would need more
-#: than FUTILITY_MARGIN times its budget to be bounded, projected from the variances alone, stops `inconclusive`
-#: (and says which tile sizes the budget can bound). The margin absorbs the noise of the largest of many variance
-#: estimates at 16 passes (the largest of a few hundred chi-square(15) / 15 ratios is about 2.4).
+#: Futility (`check`): from this many passes a side, once the claim's size is fixed (at `identical_passes`)...
 FUTILITY_PASSES = 16
-FUTILITY_SHARE = 8  # ...and from an eighth of the budget (64 passes of the default 512): a bias found later is given up
-FUTILITY_MARGIN = 4.0
-#: ...and only while nothing points to a bias: the smallest p-value of the `biased` family, Bonferroni-adjusted
-#: over it, above this. A futility stop ends the search for `biased` too, and a bias that would cross its boundary
-#: later in the budget already shows as a small adjusted p at 16 passes (measured in
-#: `benchmarks.studies.futility`); under no bias the adjusted p exceeds it in about 80 % of runs, which keep the saving.
-FUTILITY_PROMISE = 0.5
+#: ...a look stops where the claim's size is out of reach and the most promising tile-channel's conditional power
+#: to reach `biased` by the budget, under the bias the budget detects there, is below this: the most power the
+#: stop gives up against such a bias (see the module docstring).
+FUTILITY_LOSS = 0.05
 
 #: Bounds on a relative difference beyond this say nothing a person can use (an early look's interval of a
 #: tile whose reference mean is nearly 0): shown as "not bounded".
@@ -118,6 +124,17 @@ MAX_SHOWN_BOUND = 10.0
 def identical_passes(alpha: float, share: float = IDENTICAL_SHARE) -> int:
     """The fewest identical passes that rule out, at 1 - alpha, a change altering `share` of the passes."""
     return max(MIN_PASSES_FOR_NORMALITY, math.ceil(math.log(alpha) / math.log1p(-share)))
+
+
+@dataclass(frozen=True)
+class Claim:
+    """The tile size an `equivalent` speaks of, and how it was chosen: `sized` for a check's budget from the
+    variances (`welch_core.sizing`: the claim then needs every coarser size bounded too, and falls back to the
+    finest coarser size that is at the end), else as given (`--equivalence-tile`, or a fixed design's finest).
+    A sized claim's `tile` is None until its sizing look."""
+
+    tile: int | None
+    sized: bool = False
 
 
 @dataclass(frozen=True)
@@ -162,8 +179,9 @@ class ScaleResult:
     bounded: int  # tiles bounded within the tolerance (all, when there is no tolerance and every tile is bounded)
     unbounded_box: tuple[int, int, int, int] | None  # x, y, width, height around the tiles not bounded
     passes_needed: int | None  # passes a side that would bound them at the current rate (None: can't tell)
-    #: passes a side that would bound every tile here if both sides had the same mean, from the variances alone
-    #: (None: no tolerance, nothing to project, or no number of test passes would: a fixed reference too noisy)
+    #: passes a side that bound every tile here with probability `sizing.SIZING_CHANCE` if both sides had the
+    #: same mean, from the variances alone (None: no tolerance, or no number of passes would: untrusted tiles, a
+    #: fixed reference too noisy)
     projected: int | None = None
 
     def to_json(self) -> dict[str, Any]:
@@ -192,6 +210,12 @@ class Evidence:
     budget: int | None = None  # passes a side a check may render (None: a fixed design; no futility stop)
     #: the permutation test that `biased` between sides of different pass counts also needs (`permutation`)
     resampling: Any = None
+    #: the two-sided level of an equivalence interval at the budget's last look (what projections plan for;
+    #: None: `equivalence`, a fixed design's)
+    planning: float | None = None
+    #: the largest conditional power of a tile-channel of the `biased` family to cross its boundary by the budget
+    #: under the bias the budget detects there (`looks.promise`; None: not computed, no futility stop)
+    promise: float | None = None
 
 
 @dataclass(frozen=True)
@@ -227,6 +251,15 @@ class Outcome:
     #: the permutation test of the family, where the pass counts differ (`welch_core.permutation`); else None
     resampling: Any = field(repr=False, compare=False, default=None)
     budget: int | None = None  # a check's passes a side (None: a fixed design)
+    #: the size a check chose for its budget from the variances (`welch_core.sizing`; None: given by the user, a
+    #: fixed design, or not chosen yet); `claim_tile` differs from it where the claim fell back to a coarser size
+    target_tile: int | None = None
+    promise: float | None = None  # `Evidence.promise` at this look
+
+    @property
+    def target(self) -> ScaleResult | None:
+        """The scale the check aimed its claim at (its budget's size), where it sized one."""
+        return next((s for s in self.scales if s.tile == self.target_tile), None)
 
     @property
     def claim(self) -> ScaleResult | None:
@@ -273,6 +306,9 @@ class Outcome:
             "reason": self.reason,
             "resampling": None if self.resampling is None else self.resampling.to_json(),
             "budget": self.budget,
+            "target_tile": self.target_tile,
+            "promise": self.promise,
+            "futility_loss": FUTILITY_LOSS,
         }
 
 
@@ -280,28 +316,30 @@ class Outcome:
 
 
 def decide(scales, tests, runs, evidence: Evidence, alpha: float, tolerance: float | None,
-           claim_tile: int | None, identical: bool, whole, untestable: np.ndarray) -> Outcome:  # fmt: skip
+           claim: Claim | int | None, identical: bool, whole, untestable: np.ndarray) -> Outcome:  # fmt: skip
     """The outcome of one comparison (see the module docstring for the claims).
 
     `scales` and `tests` are the per-scale comparisons and tile tests, finest first (`comparison.assess_scales`);
-    `runs` the per-scale (reference, test) TileStats; `whole` the whole image's tile test; `untestable` the finest
-    tiles no scale tests."""
+    `runs` the per-scale (reference, test) TileStats; `claim` the size `equivalent` speaks of (a tile size as
+    given, None for the finest, or a `Claim` a check sized for its budget: chosen here at its sizing look);
+    `whole` the whole image's tile test; `untestable` the finest tiles no scale tests."""
     finest, finest_test = scales[0], tests[0]
     n_ref, n_test = finest.n_ref, finest.n_test
     n = min(n_ref, n_test)
     needed_identical = identical_passes(alpha)
     checked = n >= MIN_PASSES_FOR_NORMALITY
     enough = n >= needed_identical  # the fewest passes that bound a tile (see the module docstring)
-    if tolerance is not None and claim_tile is None:
-        claim_tile = finest.tile
+    if not isinstance(claim, Claim):
+        claim = Claim(claim)
     bounds = [
         _bounds(scale, tested, evidence.equivalence, enough)
         for scale, tested, run in zip(scales, tests, runs, strict=True)
     ]
     whole_image = _whole_difference(whole, evidence.whole, alpha)
+    planning = evidence.planning if evidence.planning is not None else evidence.equivalence
     results = tuple(
         _scale_result(scale, sig, bound, tolerance, n, run[0], p, needed_identical,
-                      _projected(scale, tested, evidence.equivalence, tolerance, needed_identical))
+                      _projected(scale, tested, planning, tolerance, needed_identical))
         for scale, tested, sig, bound, run, p in zip(
             scales, tests, evidence.significant, bounds, runs, _scale_pvalues(scales, evidence), strict=True
         )
@@ -309,9 +347,29 @@ def decide(scales, tests, runs, evidence: Evidence, alpha: float, tolerance: flo
     deterministic = sum(int((s.reasons == Reason.DETERMINISTIC_DIFFERENCE).sum()) for s in scales)
     crossed = any(bool(np.any(sig)) for sig in evidence.significant)
     relevant = ~(finest.reasons == Reason.ZERO_VARIANCE).all(axis=-1)
-    claim = next((r for r in results if r.tile == claim_tile), None)
-    bounded = claim is not None and claim.ruled_out is not None and claim.ruled_out <= tolerance
-    beyond = bounded and _beyond(scales, tests, evidence.significant, claim_tile, tolerance)
+    target_tile = _sized(claim, results, evidence, enough) if tolerance is not None else None
+    claim_tile = None if tolerance is None else (target_tile or claim.tile or finest.tile)
+
+    def holds(tile: int) -> bool:
+        """`equivalent` at `tile`: its tiles bounded (a sized claim: every coarser size's too), and no finer tile
+        found biased beyond the tolerance (which a coarser claim would hide)."""
+        sizes = [r for r in results if r.tile == tile or (claim.sized and r.tile > tile)]
+        within = all(r.ruled_out is not None and r.ruled_out <= tolerance for r in sizes)
+        return within and not _beyond(scales, tests, evidence.significant, tile, tolerance)
+
+    bounded = tolerance is not None and holds(claim_tile)
+    claimed = next((r for r in results if r.tile == claim_tile), None)
+    beyond = (
+        tolerance is not None and claimed.ruled_out is not None and claimed.ruled_out <= tolerance
+        and _beyond(scales, tests, evidence.significant, claim_tile, tolerance)
+    )  # fmt: skip
+    futile = _futile(claimed, bounded, evidence, tolerance, n) and (not claim.sized or target_tile is not None)
+    # A sized claim not bounded at its own size: at the end (or a futility stop), the finest coarser size that holds
+    fallback = (
+        next((r.tile for r in results if r.tile > claim_tile and holds(r.tile)), None)
+        if claim.sized and tolerance is not None and not bounded and (evidence.final or futile)
+        else None
+    )
     too_untested = int(untestable.sum()) > MAX_UNTRUSTED_SHARE * int(relevant.sum())
     testable = any(s.used.any() for s in scales)
 
@@ -320,13 +378,15 @@ def decide(scales, tests, runs, evidence: Evidence, alpha: float, tolerance: flo
         verdict, reason = Verdict.BIASED, "deterministic"
     elif identical and n >= needed_identical:
         verdict, reason = Verdict.EQUIVALENT, "identical"
-    elif bounded and not beyond:
+    elif bounded:
         verdict, reason = Verdict.EQUIVALENT, "bounded"
     elif identical:
         verdict, reason, decided = Verdict.INCONCLUSIVE, "identical_too_few", evidence.final
     elif crossed or (evidence.p_value is not None and evidence.p_value <= alpha):
         verdict, reason = Verdict.BIASED, "significant" if crossed else "spread"
-    elif _futile(claim, evidence, tolerance, n, scales):
+    elif futile and fallback is not None:
+        verdict, reason, claim_tile = Verdict.EQUIVALENT, "bounded", fallback
+    elif futile:
         verdict, reason = Verdict.INCONCLUSIVE, "futile"
     elif not evidence.final:
         verdict, reason, decided = Verdict.INCONCLUSIVE, "undecided", False
@@ -336,6 +396,8 @@ def decide(scales, tests, runs, evidence: Evidence, alpha: float, tolerance: flo
         verdict, reason = Verdict.INCONCLUSIVE, "unreachable"
     elif too_untested or not testable:
         verdict, reason = Verdict.INCONCLUSIVE, "too_untested"
+    elif fallback is not None:
+        verdict, reason, claim_tile = Verdict.EQUIVALENT, "bounded", fallback
     elif tolerance is not None:
         verdict, reason = Verdict.INCONCLUSIVE, "beyond" if beyond else "unbounded"
     else:
@@ -369,6 +431,8 @@ def decide(scales, tests, runs, evidence: Evidence, alpha: float, tolerance: flo
         found=tuple(np.asarray(sig).any(axis=-1) for sig in evidence.significant),
         resampling=evidence.resampling,
         budget=evidence.budget,
+        target_tile=target_tile,
+        promise=evidence.promise,
     )
 
 
@@ -394,56 +458,38 @@ def _bounds(scale, tested, level: float, enough: bool):
     return np.where(equal, 0.0, bound), estimate, half
 
 
-def _futile(claim: ScaleResult | None, evidence: Evidence, tolerance: float | None, n: int, scales) -> bool:
+def _sized(claim: Claim, results, evidence: Evidence, enough: bool) -> int | None:
+    """The size a sized claim aims at: the one chosen at an earlier look, else chosen now from this look's
+    projections where this is its sizing look: the first at which a claim could be made (`enough` passes: the
+    variances then have as many degrees of freedom as the choice can have for free), or the last look."""
+    if not claim.sized:
+        return None
+    if claim.tile is not None:
+        return claim.tile
+    if evidence.budget is None or not (enough or evidence.final):
+        return None
+    return choose_claim([(r.tile, r.projected) for r in results], evidence.budget)
+
+
+def _futile(claimed: ScaleResult | None, bounded: bool, evidence: Evidence, tolerance: float | None, n: int) -> bool:
     """Whether a check stops for futility (see the module docstring): a look before the last, with a tolerance,
-    from an eighth of the budget (at least FUTILITY_PASSES passes a side) on, whose claim scale can't be bounded
-    within FUTILITY_MARGIN x budget, while nothing points to a bias (FUTILITY_PROMISE)."""
-    if tolerance is None or evidence.budget is None or evidence.final or claim is None:
+    from FUTILITY_PASSES passes a side on, whose claim is out of the budget's reach at the current estimates while
+    no tile-channel's conditional power to reach `biased` by the budget is FUTILITY_LOSS or more."""
+    if tolerance is None or evidence.budget is None or evidence.final or claimed is None or bounded:
         return False
-    if n < max(FUTILITY_PASSES, evidence.budget // FUTILITY_SHARE) or claim.bounded == claim.tiles:
+    if n < FUTILITY_PASSES or evidence.promise is None or claimed is None:
         return False
-    out_of_reach = claim.projected is None or claim.projected > FUTILITY_MARGIN * evidence.budget
-    return out_of_reach and _adjusted_smallest(scales) > FUTILITY_PROMISE
-
-
-def _adjusted_smallest(scales) -> float:
-    """The smallest tested p-value of the `biased` family, Bonferroni-adjusted over every tile-channel of every
-    size (1 where nothing is tested)."""
-    best = 1.0
-    for scale in scales:
-        tested = scale.used[..., None] & (scale.reasons == Reason.VALID)
-        if tested.any():
-            best = min(best, float(np.min(scale.pvalues[tested])) * len(scales) * scale.pvalues.size)
-    return best
+    out_of_reach = claimed.passes_needed is None or claimed.passes_needed > evidence.budget
+    return out_of_reach and evidence.promise < FUTILITY_LOSS
 
 
 def _projected(scale, tested, level: float, tolerance: float | None, floor: int) -> int | None:
-    """Passes a side that would bound every tile-channel of the scale within the tolerance if both sides had the
-    same mean: the interval's half-width z SE / |mu_ref| shrinks to the tolerance. Only the variances enter (a stop
-    that read the differences would shape what it leaves). With equal pass counts (or paired) both sides grow; with
-    unequal ones the reference is kept (a suite's blessed reference) and only the test side grows, so a reference
-    too noisy for the tolerance makes it None. Untested tiles (no variance) are left out; zero variance needs none."""
+    """Passes a side that bound every tile-channel of the scale within the tolerance with probability
+    `sizing.SIZING_CHANCE` if both sides had the same mean (`sizing.passes_to_bound`: the variances alone, not the
+    differences, so a plan or a stop made from it does not shape what it leaves)."""
     if tolerance is None:
         return None
-    from scipy import special  # here: this module is imported where scipy is not (a stock Blender)
-
-    valid = scale.reasons == Reason.VALID
-    if not valid.any():
-        return floor
-    result, n_ref, n_test = tested.result, scale.n_ref, scale.n_test
-    z = float(special.ndtri(1.0 - level / 2.0))
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        room = (tolerance * np.abs(tested.ref_mean) / z) ** 2  # the variance of the difference's estimate allowed
-        se2 = result.standard_error**2
-        if tested.kind == "paired" or n_ref == n_test:
-            need = n_test * se2 / room
-        else:
-            test_part = np.maximum(se2 - tested.ref_var, 0.0) * n_test
-            need = np.where(room > tested.ref_var, test_part / (room - tested.ref_var), np.inf)
-    need = need[valid & ~np.isnan(need)]
-    if need.size and not np.all(np.isfinite(need)):
-        return None
-    return max(floor, int(math.ceil(float(need.max())))) if need.size else floor
+    return passes_to_bound(tested, scale.trusted, scale.n_ref, scale.n_test, level, tolerance, floor)
 
 
 def _scale_result(scale, significant, bounds, tolerance, n: int, run, p_value, identical_needed: int,

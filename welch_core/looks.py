@@ -62,7 +62,8 @@ from .comparison import (
     pixel_share,
     test_tiles,
 )
-from .decision import Evidence, Outcome, decide
+from .decision import Claim, Evidence, Outcome, decide
+from .effect import DETECTION_POWER
 from .errors import WelchInputError, check_alpha, check_int
 from .multitest import bonferroni
 from .permutation import needs_resampling, permutation_max_t
@@ -83,6 +84,7 @@ __all__ = [
     "conservative",
     "information_fraction",
     "look_schedule",
+    "promise",
     "sequential_look",
 ]
 
@@ -113,10 +115,10 @@ class SequentialPlan:
     tolerance: float | None = 0.01
     spending: str = "pocock"
     test_kind: str = "auto"
-    equivalence_tile: int | None = None  # claim `equivalent` at this tile size (default: the finest)
+    equivalence_tile: int | None = None  # claim `equivalent` at this tile size (default: sized for the budget)
     reserve: float = EXTENSION_RESERVE  # the share of alpha kept for looks past max_passes (a grown budget)
     early_share: float = EARLY_SHARE  # the share of each `biased` level spent by the early design (0: none)
-    futility: bool = True  # stop `inconclusive` once `equivalent` is out of the budget's reach (`decision`)
+    futility: bool = True  # stop once neither claim is within the budget's reach (`decision`)
     pixel_variance: str = "off"  # test tiles by their pixels' variances where allowed (`welch_core.pixels`)
 
     def __post_init__(self):
@@ -273,9 +275,41 @@ def resampling_level(fractions, plan: SequentialPlan) -> float:
     return max(spent(fractions[-1], plan) - before, 0.0)
 
 
+def planned_fractions(fractions, plan: SequentialPlan, passes: int, budget: int, reference_passes: int | None):
+    """The information fractions of every look so far and of those the schedule still plans up to `budget` (a
+    fixed reference of `reference_passes`: its information counted, as `information_fraction` does)."""
+    later = [information_fraction(m, plan.max_passes, reference_passes)
+             for m in look_schedule(plan.max_passes, budget=budget) if m > passes]  # fmt: skip
+    return tuple(float(f) for f in fractions) + tuple(later)
+
+
+def promise(scales, final_levels, fraction: float) -> float:
+    """The largest conditional power, over the tested tile-channels of every scale, to cross the boundary of the
+    budget's last look (its nominal level in `final_levels`, per scale) if the tile-channel held the bias the
+    budget detects there with `DETECTION_POWER` (its minimum detectable bias: drift c + z_beta at the end), given
+    its z now at information `fraction` of the budget's. On the Brownian scale B(t) = z sqrt(t) the rest of the
+    path adds N(drift (1 - t), 1 - t), so the power is Phi((z sqrt(t) + z_beta (1 - t) - c t) / sqrt(1 - t))
+    (Lan, Simon and Halperin 1982). It needs only each p-value and the boundary: any test's z serves."""
+    from scipy import special
+
+    if fraction >= 1.0:
+        return 1.0
+    z_beta = float(special.ndtri(DETECTION_POWER))
+    best = 0.0
+    for scale, level in zip(scales, final_levels, strict=True):
+        tested = scale.used[..., None] & (scale.reasons == Reason.VALID)
+        if not tested.any() or not level > 0:
+            continue
+        p = max(float(np.min(scale.pvalues[tested])), 1e-300)
+        z, c = float(special.ndtri(1.0 - p / 2.0)), float(special.ndtri(1.0 - level / 2.0))
+        x = (z * math.sqrt(fraction) + z_beta * (1.0 - fraction) - c * fraction) / math.sqrt(1.0 - fraction)
+        best = max(best, float(special.ndtr(x)))
+    return best
+
+
 def sequential_look(
     ref: TileStats, test: TileStats, plan: SequentialPlan, fractions, final: bool | None = None,
-    budget: int | None = None, pairs: PixelMoments | None = None,
+    budget: int | None = None, pairs: PixelMoments | None = None, claim_tile: int | None = None,
 ) -> Look:  # fmt: skip
     """The decision at the last of the looks at information `fractions` (every look so far, increasing).
 
@@ -284,7 +318,9 @@ def sequential_look(
     the last look (default: its fraction is 1); a check stopped by its time budget passes True. `budget` is the
     passes a side the check may render (default the plan's; more once it was grown): the futility stop of
     `equivalent` compares the passes each scale needs with it (`welch_core.decision`). `pairs`: a paired run's
-    moments of each pixel's difference (see `compare`).
+    moments of each pixel's difference (see `compare`). `claim_tile`: the size an earlier look sized the claim of
+    `equivalent` at (its outcome's `target_tile`); None before its sizing look, which chooses it
+    (`welch_core.sizing`); a plan's `equivalence_tile` is the user's and is kept as given.
 
     Each tile-channel of each scale has the Bonferroni share alpha / (S m_s) of `biased`, spent over the looks by
     the early and the main design (`biased_levels`);
@@ -313,6 +349,10 @@ def sequential_look(
     equivalence_level, whole_level = _levels(
         tuple(fractions.tolist()), (equivalence_alpha, plan.alpha), plan.spending, plan.reserve
     )
+    budget = plan.max_passes if budget is None else budget
+    fixed = ref.n if ref.n != test.n else None  # a fixed reference (a suite's blessed one): its passes stay
+    ahead = planned_fractions(fractions, plan, n, budget, fixed)
+    planning = float(_levels(ahead, (equivalence_alpha,), plan.spending, plan.reserve)[0])
     significant = []
     crossed, best = 0, (0.0, 1.0, 1.0)  # (log ratio of p to its level, p, level) of the strongest hypothesis
     for scale, level in zip(scales, scale_levels, strict=True):
@@ -345,11 +385,14 @@ def sequential_look(
         final=bool(fractions[-1] >= 1.0) if final is None else final,
         family="every tile-channel of every tile size, at every look",
         resampling=resampling,
-        budget=(plan.max_passes if budget is None else budget) if plan.futility else None,
+        budget=budget,
+        planning=planning,
+        promise=promise(scales, biased_levels(ahead, shares, plan), fractions[-1] / ahead[-1])
+        if plan.futility and plan.tolerance is not None
+        else None,
     )
-    outcome = decide(
-        scales, tests, runs, evidence, plan.alpha, plan.tolerance, _claim(plan, scales), identical, whole, uncovered
-    )
+    outcome = decide(scales, tests, runs, evidence, plan.alpha, plan.tolerance, _claim(plan, scales, claim_tile),
+                     identical, whole, uncovered)  # fmt: skip
     return Look(
         passes=n,
         fraction=float(fractions[-1]),
@@ -361,5 +404,10 @@ def sequential_look(
     )
 
 
-def _claim(plan: SequentialPlan, scales) -> int | None:
-    return check_claim_tile(plan.equivalence_tile, scales, plan.tolerance)
+def _claim(plan: SequentialPlan, scales, sized: int | None) -> Claim | None:
+    """The user's `equivalence_tile` as given, else the claim sized for the budget (`sized`: chosen already)."""
+    if plan.equivalence_tile is not None or plan.tolerance is None:
+        return Claim(check_claim_tile(plan.equivalence_tile, scales, plan.tolerance))
+    if sized is not None and sized not in [s.tile for s in scales]:
+        raise WelchInputError(f"`claim_tile` must be one of the tested tile sizes, got {sized!r}")
+    return Claim(sized, sized=True)

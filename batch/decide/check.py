@@ -59,8 +59,8 @@ class CheckJob:
     max_seconds: float | None = None
     alpha: float = default("alpha", "check")
     tolerance: float | None = default("tolerance", "check")
-    equivalence_tile: int | None = None  # claim `equivalent` at this tile size (default: the finest)
-    futility: bool = True  # stop `inconclusive` once `equivalent` is out of the budget's reach (welch_core.decision)
+    equivalence_tile: int | None = None  # claim `equivalent` at this tile size (default: sized for the budget)
+    futility: bool = True  # stop once neither claim is within the budget's reach (welch_core.decision)
     pixel_variance: str = default("pixel_variance", "check")  # the pixel-variance test (welch_core.pixels)
     resume: bool = False
     #: The reference is a finished statistics file (a suite's blessed reference), not rendered: only the test
@@ -143,6 +143,9 @@ class Check:
         self.last_look: tuple | None = None  # (the last look, both sides' statistics then): a live view's
         self.pairs: PixelPairs | None = None  # each pixel's difference per seed (paired, `batch.jobs.pairs`)
         self.pixel_pairs: wc.PixelMoments | None = None  # their moments at the last look
+        #: the size of the `equivalent` claim, chosen for the budget at its sizing look (`welch_core.sizing`) and
+        #: kept from then on (None: not chosen yet, or the user's --equivalence-tile, which the plan holds)
+        self.claim_tile: int | None = None
 
     # -- state on disk ---------------------------------------------------------------------------------------
 
@@ -156,6 +159,7 @@ class Check:
             "reference": _side_record(self.job.reference),
             "test": _side_record(self.job.test),
             "render_seconds": self.render_seconds,
+            "claim_tile": self.claim_tile,
             "looks": self.looks,
         }
 
@@ -221,6 +225,10 @@ class Check:
         self.plan = stored
         self.looks = list(state.get("looks", []))
         self.render_seconds = float(state.get("render_seconds", 0.0))
+        claim = state.get("claim_tile")
+        if claim is not None and (isinstance(claim, bool) or not isinstance(claim, int) or claim < 1):
+            raise BatchError(f"{path} is not a readable check state (claim_tile {claim!r})")
+        self.claim_tile = claim
 
     def _grown_budget(self, plan: wc.SequentialPlan, budget: int) -> int:
         """The budget a resumed check gets from --max-passes: the last look of the schedule it fits (the looks past
@@ -355,6 +363,8 @@ class Check:
             n = min(ref.n, test.n) if not self.job.fixed_reference else test.n
             fractions.append(self._fraction(n))
             look = self._look(ref, test, fractions, index == len(schedule) - 1)
+            if self.claim_tile is None and look.outcome.target_tile is not None:
+                self.claim_tile = look.outcome.target_tile  # sized at this look: every later look keeps it
             self.looks.append(_look_record(look, self.render_seconds))
             self._save_state()
             bound = look.ruled_out if math.isfinite(look.ruled_out) else None
@@ -385,7 +395,7 @@ class Check:
         paired = self.pairs is not None and ref.seeds == test.seeds
         self.pixel_pairs = self.pairs.at(ref.seeds) if paired else None
         return wc.sequential_look(ref, test, self.plan, fractions, final=final, budget=self.budget,
-                                  pairs=self.pixel_pairs)  # fmt: skip
+                                  pairs=self.pixel_pairs, claim_tile=self.claim_tile)  # fmt: skip
 
     @staticmethod
     def _at(run: wc.TileStats, n: int) -> wc.TileStats:
@@ -400,7 +410,7 @@ def _plan_difference(stored: wc.SequentialPlan, planned: wc.SequentialPlan) -> s
         if name == "futility":
             return "the futility stop" if value else "--no-futility"
         if name == "equivalence_tile":
-            return "the finest tile as the claim" if value is None else f"--equivalence-tile {value}"
+            return "the claim sized for the budget" if value is None else f"--equivalence-tile {value}"
         if name == "tolerance":
             return "--tolerance off" if value is None else f"--tolerance {100 * value:g}%"
         if name == "pixel_variance":
@@ -452,6 +462,8 @@ def _look_record(look: wc.Look, seconds: float) -> dict:
         "seconds": seconds,
         "budget": outcome.budget,
         "reason": outcome.reason,
+        "claim_tile": outcome.claim_tile,
+        "promise": outcome.promise,
     }
     return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in record.items()}
 

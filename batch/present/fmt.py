@@ -63,7 +63,11 @@ def interval(low: float | None, high: float | None, digits: int = 2) -> str:
 
 
 def difference(d, digits: int = 2) -> str:
-    """A `welch_core.Difference` as '+1.02 % [+0.35 %, +1.68 %]' ('—' without an estimate)."""
+    """A `welch_core.Difference` as '+1.02 % [+0.35 %, +1.68 %]', '+1.02 % (no interval yet)' where its interval is
+    unbounded ('—' without an estimate)."""
     if d is None or d.get("estimate") is None:
         return "—"
-    return f"{percent(d['estimate'], digits)} {interval(d['low'], d['high'], digits)}"
+    low, high = d.get("low"), d.get("high")
+    if low is None or high is None or not (math.isfinite(low) and math.isfinite(high)):
+        return f"{percent(d['estimate'], digits)} (no interval yet)"
+    return f"{percent(d['estimate'], digits)} {interval(low, high, digits)}"

@@ -39,8 +39,41 @@ def claim_scale(outcome: dict[str, Any]) -> dict[str, Any] | None:
 
 
 def ruled_out_list(outcome: dict[str, Any]) -> str:
-    """'16: 2.10 %, 32: 1.20 %, 64: —' : the bias ruled out at each tile size."""
-    return ", ".join(f"{s['tile']}: {fmt.magnitude(s['ruled_out'])}" for s in outcome["scales"])
+    """'16: not bounded, 32: 2.10 %, 64: 1.20 %' : the bias ruled out at each tile size."""
+    return ", ".join(
+        f"{s['tile']}: {'not bounded' if s['ruled_out'] is None else fmt.magnitude(s['ruled_out'])}"
+        for s in outcome["scales"]
+    )
+
+
+def scale_of(outcome: dict[str, Any], tile: int | None) -> dict[str, Any] | None:
+    return next((s for s in outcome["scales"] if s["tile"] == tile), None)
+
+
+def every_tile(scale: dict[str, Any]) -> str:
+    """'every 64x64 tile', or 'the whole image' where one tile of that size covers it."""
+    return "the whole image" if scale["tiles"] == 1 else f"every {scale['tile']}x{scale['tile']} tile"
+
+
+def _ruled_out_there(scale: dict[str, Any]) -> str:
+    """'a bias beyond 0.82 % is ruled out there', or that every tile is identical on both sides."""
+    if scale["ruled_out"] == 0:
+        return "identical on both sides there"
+    return f"a bias beyond {fmt.magnitude(scale['ruled_out'])} is ruled out there"
+
+
+def finer_needs(outcome: dict[str, Any], tile: int) -> str | None:
+    """What the sizes finer than `tile` would need if the sides agree, projected from the variances: '16x16 tiles
+    would need about 4500 passes a side, 32x32 about 1100' (None: no finer size)."""
+    finer = [s for s in outcome["scales"] if s["tile"] < tile]
+    reachable = [s for s in finer if s["projected"] is not None]
+    parts = [f"{s['tile']}x{s['tile']} about {s['projected']}" for s in reachable]
+    if parts:
+        parts[0] = parts[0].replace(" about", " tiles would need about", 1) + " passes a side"
+    stuck = [f"{s['tile']}x{s['tile']}" for s in finer if s["projected"] is None]
+    if stuck:
+        parts.append(f"{', '.join(stuck)} tiles can't be bounded by more passes alone")
+    return ", ".join(parts) or None
 
 
 def _tolerance(outcome: dict[str, Any]) -> str:
@@ -95,17 +128,13 @@ def sentence(outcome: dict[str, Any]) -> str:
     parts = []
     if reason == "bounded":
         claim = claim_scale(outcome)
-        tile = claim["tile"]
-        parts.append(
-            f"{text} within ±{_tolerance(outcome)} in every {tile}x{tile} tile (a bias beyond "
-            f"{fmt.magnitude(claim['ruled_out'])} is ruled out there)"
-        )
-        finest = outcome["scales"][0]
-        if finest["tile"] != tile:
-            parts.append(
-                f"in {finest['tile']}x{finest['tile']} tiles a bias up to {fmt.magnitude(finest['ruled_out'])} is "
-                "not ruled out"
-            )
+        parts.append(f"{text} within ±{_tolerance(outcome)} in {every_tile(claim)} ({_ruled_out_there(claim)})")
+        target = scale_of(outcome, outcome.get("target_tile"))
+        if target is not None and target["tile"] != claim["tile"]:
+            parts.append(f"not in {every_tile(target)}, the size the budget was planned for")
+        finer = finer_needs(outcome, claim["tile"])
+        if finer:
+            parts.append(finer)
     elif reason == "significant":
         parts += _biased_claim(outcome, text, whole)
         whole = None
@@ -113,28 +142,26 @@ def sentence(outcome: dict[str, Any]) -> str:
         parts.append(f"{text}: a difference spread over many tiles (too many small p-values)")
     elif reason == "futile":
         claim = claim_scale(outcome)
-        tile, need = claim["tile"], claim["projected"]
-        first = (
-            f"{text}: stopped early, every {tile}x{tile} tile within ±{_tolerance(outcome)} would take "
-            + (f"about {need} passes a side" if need is not None else "more passes than the reference has")
-            + f" (projected from the variances), beyond the budget of {outcome['budget']}; no tile pointed to a bias "
-            "by then"
+        need = claim["passes_needed"]
+        reach = (
+            f"about {need} passes a side at the current estimates" if need is not None
+            else "more passes than any budget at the current estimates (an estimate near or beyond the tolerance)"
+        )  # fmt: skip
+        parts.append(
+            f"{text}: stopped early after {n} of {outcome['budget']} passes a side, neither claim within the "
+            f"budget's reach: {every_tile(claim)} within ±{_tolerance(outcome)} would take {reach}, and no "
+            f"tile-channel would reach `biased` by the budget with more than a {_loss(outcome)} chance even if it held "
+            "the bias the budget detects there"
         )
-        parts.append(first)
-        reachable = reachable_scales(outcome)
-        if reachable:
-            parts.append("within the budget: " + ", ".join(f"{t}x{t} (about {p} passes)" for t, p in reachable))
+        parts.append(f"bias ruled out per tile size: {ruled_out_list(outcome)}")
     elif reason in ("unbounded", "beyond"):
         claim = claim_scale(outcome)
         tile = claim["tile"]
         coarser = next((s for s in outcome["scales"] if s["tile"] > tile and s["ruled_out"] is not None
                         and s["ruled_out"] <= outcome["tolerance"]), None)  # fmt: skip
-        first = f"{text}: not shown within ±{_tolerance(outcome)} in every {tile}x{tile} tile"
+        first = f"{text}: not shown within ±{_tolerance(outcome)} in {every_tile(claim)}"
         if coarser is not None:
-            first = (
-                f"{text}: within ±{_tolerance(outcome)} in every {coarser['tile']}x{coarser['tile']} tile; "
-                f"{tile}x{tile} not bounded"
-            )
+            first = f"{text}: within ±{_tolerance(outcome)} in {every_tile(coarser)}; {tile}x{tile} not bounded"
         if reason == "beyond":
             first += " (a finer tile found biased differs by more than that)"
         parts.append(first)
@@ -144,11 +171,7 @@ def sentence(outcome: dict[str, Any]) -> str:
             open_ = f"{claim['tiles'] - claim['bounded']} of {claim['tiles']} tiles not bounded"
             if claim["unbounded_box"] is not None and claim["bounded"]:
                 open_ += f" ({box(claim['unbounded_box'])})"
-            if _reachable(claim["passes_needed"], n):
-                open_ += f"; about {claim['passes_needed']} passes a side would bound them"
-            elif claim["passes_needed"] is not None:
-                open_ += "; not reachable at this size by more passes"
-            parts.append(open_)
+            parts.append(open_ + _passes_to_bound(claim))
         parts.append(f"bias ruled out per tile size: {ruled_out_list(outcome)}")
     elif reason == "undecided":
         parts.append(f"{text}: undecided after {n} passes a side")
@@ -199,22 +222,22 @@ def resampling_notes(outcome: dict[str, Any]) -> list[str]:
     ]
 
 
-#: A pass count more than this many times the passes so far is advice nobody follows: "not reachable".
-_REACHABLE_FACTOR = 64
+def _loss(outcome: dict[str, Any]) -> str:
+    """The power a futility stop gives up at most, as a percentage ('5 %')."""
+    return f"{100 * outcome['futility_loss']:g} %"
 
 
-def _reachable(need: int | None, n: int) -> bool:
-    return need is not None and need <= _REACHABLE_FACTOR * max(n, 1)
-
-
-def reachable_scales(outcome: dict[str, Any]) -> list[tuple[int, int]]:
-    """(tile, projected passes) of the scales the budget can bound if the sides agree, finest first."""
-    budget = outcome.get("budget")
-    return [
-        (s["tile"], s["projected"])
-        for s in outcome["scales"]
-        if budget is not None and s.get("projected") is not None and s["projected"] <= budget
-    ]
+def _passes_to_bound(scale: dict[str, Any]) -> str:
+    """'; about 900 passes a side would bound them if the sides agree', or that the estimates put it out of reach
+    (one projection, the variances', wherever a pass count is quoted)."""
+    if scale["projected"] is None:
+        return "; more passes alone can't bound them (tiles whose samples are not normal, or a reference too noisy)"
+    if scale["passes_needed"] is None:
+        return (
+            f"; about {scale['projected']} passes a side would bound them if the sides agreed, but an estimate is at "
+            "or beyond the tolerance"
+        )
+    return f"; about {scale['projected']} passes a side would bound them if the sides agree"
 
 
 def _early(check: dict[str, Any] | None) -> str:
@@ -264,6 +287,13 @@ def method(
             f"±{_tolerance(outcome)} (an intersection-union test at {outcome['alpha']:g}"
             + (", the intervals repeated over the looks)" if outcome["design"] == "sequential" else ")")
         )
+        if outcome.get("target_tile"):
+            target = outcome["target_tile"]
+            text += (
+                f"; the claim's size, {target}x{target}, chosen for the budget from the variances alone (the finest "
+                "that the budget bounds if the sides agree), and every coarser size bounded too, so that a size chosen "
+                "this way, or a coarser one at the end, keeps the error rate of `equivalent` at alpha"
+            )
     return text
 
 
@@ -314,54 +344,54 @@ def next_step(outcome: dict[str, Any], check: bool = False, hidden: list[str] = 
         )
     if reason == "bounded":
         claim = claim_scale(outcome)
-        return (
-            f"Nothing to do: every {claim['tile']}x{claim['tile']} tile is within ±{_tolerance(outcome)} of the "
-            "reference."
-        )
+        done = f"Nothing to do at this size: {every_tile(claim)} is within ±{_tolerance(outcome)} of the reference."
+        finer = [x for x in outcome["scales"] if x["tile"] < claim["tile"] and x["projected"] is not None]
+        if finer:
+            size = finer[-1]
+            done += (
+                f" To speak for {size['tile']}x{size['tile']} tiles too: the same check with --equivalence-tile "
+                f"{size['tile']} and --max-passes {size['projected']} (about that many passes a side), another --out."
+            )
+        return done
     if reason == "identical":
         return "Nothing to do: the change leaves every pass as it was."
     if reason == "identical_too_few":
         return (
             f"Render at least {outcome['identical_needed']} passes a side to rule out a rarely visible change: {more}."
         )
-    if reason == "futile":
-        reachable = reachable_scales(outcome)
+    if reason in ("futile", "unbounded", "beyond"):
         claim = claim_scale(outcome)
-        need = claim["projected"]
-        if _reachable(need, min(outcome["n_ref"], outcome["n_test"])):
-            grow = f"give it about {need} passes a side (the same command with --max-passes {need} and --resume)"
-        elif need is not None:
-            grow = f"no budget within reach bounds every {claim['tile']}x{claim['tile']} tile (about {need} passes)"
+        coarser = [x for x in outcome["scales"] if x["tile"] > claim["tile"] and x["projected"] is not None]
+        if claim["projected"] is not None and claim["passes_needed"] is not None:
+            need = claim["projected"]
+            grow = (
+                f"{every_tile(claim)} within ±{_tolerance(outcome)} would need about {need} passes a side if the sides "
+                "agree: "
+                + (f"the same check with --max-passes {need} and --resume" if check
+                   else f"render about {need} passes a side into both runs (--resume, more seeds), then compare again")
+            )  # fmt: skip
+        elif claim["projected"] is not None:
+            grow = (
+                f"an estimate at or beyond the tolerance keeps {every_tile(claim)} from being bounded: look at the "
+                "tiles not bounded in the map"
+            )
         else:
-            grow = "only a longer reference can bound every tile (bless it with more passes)"
-        search = (
-            " The stop also ended the search for `biased`: a bias that shows only later in the budget is found with "
-            "--no-futility, which renders the whole budget."
-        )
-        if reachable:
-            return (
-                f"The check stopped early: claim `equivalent` at a size the budget can bound, the same command with "
-                f"--equivalence-tile {reachable[0][0]} and another --out; or {grow}.{search}"
+            grow = (
+                f"more passes alone can't bound {every_tile(claim)} (tiles whose samples are not normal, or a "
+                "reference too noisy): more samples per pass (--spp) make each pass's tile sums more normal"
             )
-        return f"The check stopped early: {grow}.{search}"
-    if reason in ("unbounded", "beyond"):
-        claim = claim_scale(outcome)
-        need = claim["passes_needed"]
-        n = min(outcome["n_ref"], outcome["n_test"])
-        if need is not None and not _reachable(need, n):
-            sizes = [s["tile"] for s in outcome["scales"] if _reachable(s.get("projected"), n)
-                     and s["tile"] > claim["tile"]]  # fmt: skip
-            other = f": try --equivalence-tile {sizes[0]}" if sizes else ""
-            return (
-                f"Every {claim['tile']}x{claim['tile']} tile within the tolerance is not reachable at this size "
-                f"(about {need} passes a side){other}; or {more}."
+        if coarser and not outcome.get("target_tile"):
+            size = coarser[0]
+            grow += (
+                f"; or claim a coarser size: --equivalence-tile {size['tile']} (about {size['projected']} passes a "
+                "side)"
             )
-        if need is not None:
-            return f"To bound every tile within the tolerance, about {need} passes a side are needed: {more}."
-        return (
-            "More passes alone may not bound every tile (an estimate beyond the tolerance, or tiles whose samples "
-            f"are not normal): look at the tiles not bounded, or give a coarser --equivalence-tile; or {more}."
-        )
+        if reason == "futile":
+            return (
+                f"The check stopped early: {grow}. The stop gave up at most {_loss(outcome)} of the power to find a "
+                "bias the budget detects; --no-futility renders the whole budget."
+            )
+        return f"Not decided at this size: {grow}."
     if reason == "unreachable":
         return (
             "Too few passes on the smaller side for a test that holds with skewed tile sums: render more passes there "

@@ -118,7 +118,8 @@ def one_run(model: Model, rng, plan: wc.SequentialPlan, biased: bool) -> dict:
         fractions = [min(m / n_max, 1.0) for m in schedule[: k + 1]]
         a = wc.TileStats.from_sums(ref[:n], list(range(n)), SIZE, SIZE, BASE_TILE)
         b = wc.TileStats.from_sums(test[:n], list(range(n_max, n_max + n)), SIZE, SIZE, BASE_TILE)
-        look = wc.sequential_look(a, b, plan, fractions)
+        claim = look.outcome.target_tile if look is not None else None  # sized at an earlier look: kept
+        look = wc.sequential_look(a, b, plan, fractions, claim_tile=claim)
         if look.verdict is not None:
             break
     return {"passes": n, "verdict": look.outcome.verdict.label}

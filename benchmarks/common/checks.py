@@ -45,7 +45,8 @@ def one_run(ref, test, ref_order, test_order, plan: wc.SequentialPlan, tile: int
         if pixels and a.seeds == b.seeds:
             order = np.sort(ref_order[:n])  # the statistics' pixel moments are of the sorted positions as well
             pairs = wc.PixelMoments.of_passes(np.asarray(test.images[order], float) - ref.images[order])
-        look = wc.sequential_look(a, b, plan, fractions, pairs=pairs)
+        claim = look.outcome.target_tile if look is not None else None  # sized at an earlier look: kept
+        look = wc.sequential_look(a, b, plan, fractions, pairs=pairs, claim_tile=claim)
         if look.verdict is not None:
             break
     verdict = look.outcome.verdict.label  # the last look is the final one: decided

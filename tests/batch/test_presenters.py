@@ -121,10 +121,12 @@ def test_a_check_says_its_last_looks_verdict_everywhere(tmp_path):
     ref, test = runs("biased", 16)
     plan = wc.SequentialPlan(max_passes=16, tolerance=0.01)
     schedule = wc.look_schedule(16)
-    fractions, looks = [], []
+    fractions, looks, looks_made = [], [], []
     for n in schedule:
         fractions.append(n / 16)
-        look = wc.sequential_look(ref.subset(range(n)), test.subset(range(n)), plan, fractions)
+        claim = looks_made[-1].outcome.target_tile if looks_made else None
+        look = wc.sequential_look(ref.subset(range(n)), test.subset(range(n)), plan, fractions, claim_tile=claim)
+        looks_made.append(look)
         looks.append({"passes": n, "fraction": n / 16, "verdict": look.verdict, "p_value": look.p_value,
                       "threshold": look.threshold, "crossed": look.crossed,
                       "ruled_out": look.outcome.claim.ruled_out, "ruled_out_tile": look.ruled_out_tile,

@@ -77,10 +77,12 @@ def run_looks(ref_sums, test_sums, plan, paired=False):
     schedule = look_schedule(plan.max_passes)
     fractions = [information_fraction(n, plan.max_passes) for n in schedule]
     test_seeds = range(len(test_sums)) if paired else range(10**6, 10**6 + len(test_sums))
+    claim = None  # the claim's size, once a look sized it for the budget (as `check` keeps it)
     for k, n in enumerate(schedule):
         ref = TileStats.from_sums(ref_sums[:n], range(n), ty * 16, tx * 16, 16)
         test = TileStats.from_sums(test_sums[:n], list(test_seeds)[:n], ty * 16, tx * 16, 16)
-        look = sequential_look(ref, test, plan, fractions[: k + 1])
+        look = sequential_look(ref, test, plan, fractions[: k + 1], claim_tile=claim)
+        claim = look.outcome.target_tile
         if look.verdict is not None:
             return look
     return look

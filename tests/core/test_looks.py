@@ -82,7 +82,9 @@ def run_looks(ref_sums, test_sums, plan, ref_seeds=None, test_seeds=None, fixed_
         m = len(ref_sums) if fixed_reference else n
         ref = TileStats.from_sums(ref_sums[:m], list(ref_seeds)[:m], ty * 8, tx * 8, 8)
         test = TileStats.from_sums(test_sums[:n], list(test_seeds)[:n], ty * 8, tx * 8, 8)
-        looks.append(sequential_look(ref, test, plan, fractions[: k + 1], final=k == len(schedule) - 1))
+        claim = looks[-1].outcome.target_tile if looks else None  # the size a look sized the claim at, kept
+        looks.append(sequential_look(ref, test, plan, fractions[: k + 1], final=k == len(schedule) - 1,
+                                     claim_tile=claim))  # fmt: skip
         if looks[-1].verdict is not None:
             break
     return looks

@@ -1,0 +1,112 @@
+"""What a budget can bound: the passes a side that would show every tile of a size within the tolerance if the
+two sides agree, projected from the variances alone, and the claim of `equivalent` sized to a check's budget.
+
+A user who asks "are these the same?" rarely knows which tile size the budget can speak for: 16x16 tiles of a dark
+corner may need thousands of passes where 64x64 tiles need a hundred. So a check that is given no
+`--equivalence-tile` fixes the size of its claim at one look, the first at which any claim could be made (both sides
+at `decision.identical_passes`: 44 passes at alpha 0.01), from the tile-channels' variances and nothing else: the
+finest size whose every tile-channel the budget bounds within the tolerance with probability `SIZING_CHANCE` if the
+sides agree (`choose_claim`).
+
+Why this keeps the error rate of `equivalent` at alpha: the claim at a size S holds only where every tile-channel
+of S *and of every coarser size* is bounded (`welch_core.decision`). A coarser tile's relative difference is the
+reference-weighted mean of its finer tiles' (radiance is not negative), so if some tile of a size is off by the
+tolerance or more, so is some tile of every finer size: the sizes whose claim would be wrong are the finest ones,
+up to the coarsest wrong size c*. A wrong claim at any size S <= c* then needs c*'s off tile bounded, which its
+repeated interval allows with probability at most alpha over all looks. That holds however S was chosen (a fixed
+sequence of hypotheses tested coarse to fine, each at alpha: Maurer, Hothorn and Lehmacher 1995), so choosing S
+from the variances, or falling back to a coarser size at the budget, never raises the rate; choosing it from the
+variances alone, not the differences, keeps the chosen size from leaning towards where the data happen to agree.
+
+The projection (`passes_to_bound`): with n passes a side a tile-channel's estimate has standard error se, and at N
+passes se sqrt(n / N) (both sides grow; with a fixed reference only the test side's part shrinks). If the sides
+agree its estimate D is normal about 0, and the tile-channel is bounded when |D| + c se_N < tolerance |mu_ref|, c
+the equivalence interval's critical value at the budget's last look: probability 2 Phi(tol / se_rel - c) - 1.
+Tile-channels are independent enough (disjoint pixels) that the chance every one is bounded is the product.
+Tile-channels that no number of passes bounds now (not trusted: fireflies; a deterministic difference; no
+finite value) make their size unreachable; identical ones (zero variance) are bounded already.
+
+Reference: W. Maurer, L. A. Hothorn, W. Lehmacher, "Multiple comparisons in drug clinical trials and preclinical
+assays: a-priori ordered hypotheses", Biometrie in der chemisch-pharmazeutischen Industrie 6, 1995.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .ttest import Reason
+
+__all__ = ["MAX_PROJECTED", "SIZING_CHANCE", "bound_chance", "choose_claim", "passes_to_bound"]
+
+#: A size is within the budget where, if the sides agree, the budget bounds every tile-channel of it with at
+#: least this probability: the power of `equivalent` the plan aims for (the usual 80 % of a sample-size plan).
+SIZING_CHANCE = 0.8
+
+#: Projections beyond this many passes a side say "not within reach" (None): nobody renders them.
+MAX_PROJECTED = 10**8
+
+
+def _standard_errors(tested, n_ref: int, n_test: int, passes):
+    """The relative standard error of each tile-channel's estimate at `passes` a side (an array broadcast against
+    the grid): both sides grow with equal counts or paired runs, only the test side against a fixed reference."""
+    se2 = tested.result.standard_error**2
+    scale = np.abs(tested.ref_mean)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        if tested.kind == "paired" or n_ref == n_test:
+            at = se2 * (n_test / passes)
+        else:
+            ref_part = np.minimum(tested.ref_var, se2)
+            at = ref_part + (se2 - ref_part) * (n_test / passes)
+        return np.sqrt(at) / scale
+
+
+def bound_chance(tested, trusted: np.ndarray, n_ref: int, n_test: int, passes: int, level: float,
+                 tolerance: float) -> float:  # fmt: skip
+    """The probability that every tile-channel of one size is bounded within `tolerance` at `passes` a side if the
+    sides agree, its intervals at two-sided error `level` (see the module docstring). `trusted`: the tiles whose
+    Welch samples are normal enough to be bounded (per tile; broadcast over channels)."""
+    from scipy import special  # here: the package is imported where scipy is not (a stock Blender)
+
+    reasons = tested.result.reason
+    valid = (reasons == Reason.VALID) & np.asarray(trusted)[..., None]
+    equal = reasons == Reason.ZERO_VARIANCE
+    if not np.all(valid | equal):
+        return 0.0  # some tile-channel no number of passes bounds as things stand
+    if not valid.any():
+        return 1.0
+    pixel = tested.pixel if tested.pixel is not None else np.zeros(valid.shape, bool)
+    df = np.where(pixel, np.inf, max(passes - 1, 1))  # the tile sums' test has n - 1 degrees of freedom at looks
+    c = special.stdtrit(df, 1.0 - level / 2.0)
+    se = _standard_errors(tested, n_ref, n_test, passes)[valid]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        each = 2.0 * special.ndtr(tolerance / se - c[valid]) - 1.0
+    if not np.all(np.isfinite(each)) or np.any(each <= 0.0):
+        return 0.0
+    return float(np.exp(np.sum(np.log(each))))
+
+
+def passes_to_bound(tested, trusted, n_ref: int, n_test: int, level: float, tolerance: float,
+                    floor: int, chance: float = SIZING_CHANCE) -> int | None:  # fmt: skip
+    """The fewest passes a side (at least `floor`) at which every tile-channel of one size is bounded with
+    probability `chance` if the sides agree (`bound_chance`); None where no number of passes up to MAX_PROJECTED
+    reaches it (a fixed reference too noisy for the tolerance, untrusted tiles, a reference mean of 0)."""
+
+    def enough(passes: int) -> bool:
+        return bound_chance(tested, trusted, n_ref, n_test, passes, level, tolerance) >= chance
+
+    if not enough(MAX_PROJECTED):
+        return None
+    low, high = floor, MAX_PROJECTED
+    if enough(low):
+        return low
+    while high - low > 1:  # the chance grows with the passes: bisect for the first that suffices
+        middle = (low + high) // 2
+        low, high = (low, middle) if enough(middle) else (middle, high)
+    return high
+
+
+def choose_claim(projected: list[tuple[int, int | None]], budget: int) -> int:
+    """The tile size a check claims `equivalent` at, from (tile, projected passes) of every size, finest first:
+    the finest the budget bounds (projection within it), else the coarsest (its best chance)."""
+    within = [tile for tile, passes in projected if passes is not None and passes <= budget]
+    return within[0] if within else projected[-1][0]
