@@ -489,7 +489,7 @@ def _projected(scale, tested, level: float, tolerance: float | None, floor: int)
     differences, so a plan or a stop made from it does not shape what it leaves)."""
     if tolerance is None:
         return None
-    return passes_to_bound(tested, scale.trusted, scale.n_ref, scale.n_test, level, tolerance, floor)
+    return passes_to_bound(tested, scale.n_ref, scale.n_test, level, tolerance, floor)
 
 
 def _scale_result(scale, significant, bounds, tolerance, n: int, run, p_value, identical_needed: int,

@@ -37,9 +37,14 @@ class Normality:
     checked: bool  # False when n < MIN_PASSES_FOR_NORMALITY
 
     @property
+    def excess(self) -> np.ndarray:
+        """g1² + |g2|: how far one sample is from normal (the mean of n samples: this / n)."""
+        return self.skewness**2 + np.abs(self.excess_kurtosis)
+
+    @property
     def shape(self) -> np.ndarray:
         """(g1² + |g2|) / n: how far the mean of n such samples still is from normal."""
-        return (self.skewness**2 + np.abs(self.excess_kurtosis)) / self.n
+        return self.excess / self.n
 
     @property
     def suspect(self) -> np.ndarray:

@@ -62,7 +62,7 @@ from .comparison import (
     pixel_share,
     test_tiles,
 )
-from .decision import Claim, Evidence, Outcome, decide
+from .decision import Claim, Evidence, Outcome, decide, identical_passes
 from .effect import DETECTION_POWER
 from .errors import WelchInputError, check_alpha, check_int
 from .multitest import bonferroni
@@ -345,14 +345,13 @@ def sequential_look(
         scales = tuple(dataclasses.replace(s, result=t.result) for s, t in zip(scales, tests, strict=True))
     shares = [bonferroni(plan.alpha, len(scales), scale.pvalues.size) for scale in scales]
     scale_levels = biased_levels(fractions, shares, plan)
-    equivalence_alpha = min(2 * plan.alpha, 0.5)
-    equivalence_level, whole_level = _levels(
-        tuple(fractions.tolist()), (equivalence_alpha, plan.alpha), plan.spending, plan.reserve
-    )
+    (whole_level,) = _levels(tuple(fractions.tolist()), (plan.alpha,), plan.spending, plan.reserve)
     budget = plan.max_passes if budget is None else budget
     fixed = ref.n if ref.n != test.n else None  # a fixed reference (a suite's blessed one): its passes stay
     ahead = planned_fractions(fractions, plan, n, budget, fixed)
-    planning = float(_levels(ahead, (equivalence_alpha,), plan.spending, plan.reserve)[0])
+    claimable = information_fraction(identical_passes(plan.alpha), plan.max_passes, fixed)
+    equivalence_level = _equivalence_level(fractions, claimable, plan)
+    planning = _equivalence_level(ahead, claimable, plan)
     significant = []
     crossed, best = 0, (0.0, 1.0, 1.0)  # (log ratio of p to its level, p, level) of the strongest hypothesis
     for scale, level in zip(scales, scale_levels, strict=True):
@@ -402,6 +401,17 @@ def sequential_look(
         crossed=crossed,
         pixel_use=pixel_share(use, tests),
     )
+
+
+def _equivalence_level(fractions, claimable: float, plan: SequentialPlan) -> float:
+    """The two-sided level of the equivalence intervals at the last of the looks at `fractions`: 2 alpha spent over
+    the looks from information `claimable` on, where `equivalent` can be claimed at all (both sides at
+    `decision.identical_passes`); the looks before it spend nothing, which that rule, fixed in advance, allows (0
+    at a look before it)."""
+    spent = tuple(float(f) for f in fractions if f >= claimable)
+    if not spent or float(fractions[-1]) < claimable:
+        return 0.0
+    return float(_levels(spent, (min(2 * plan.alpha, 0.5),), plan.spending, plan.reserve)[0])
 
 
 def _claim(plan: SequentialPlan, scales, sized: int | None) -> Claim | None:

@@ -23,8 +23,11 @@ passes se sqrt(n / N) (both sides grow; with a fixed reference only the test sid
 agree its estimate D is normal about 0, and the tile-channel is bounded when |D| + c se_N < tolerance |mu_ref|, c
 the equivalence interval's critical value at the budget's last look: probability 2 Phi(tol / se_rel - c) - 1.
 Tile-channels are independent enough (disjoint pixels) that the chance every one is bounded is the product.
-Tile-channels that no number of passes bounds now (not trusted: fireflies; a deterministic difference; no
-finite value) make their size unreachable; identical ones (zero variance) are bounded already.
+Tile-channels that no number of passes bounds (a deterministic difference, no finite value) make their size
+unreachable; identical ones (zero variance) are bounded already. A tile whose Welch
+samples are not normal yet (fireflies) counts from the passes where its shape no longer matters for a mean
+(`diagnostics.SHAPE_LIMIT`), as its skewness and kurtosis now say: a planning figure, since a few passes
+understate a heavy tail.
 
 Reference: W. Maurer, L. A. Hothorn, W. Lehmacher, "Multiple comparisons in drug clinical trials and preclinical
 assays: a-priori ordered hypotheses", Biometrie in der chemisch-pharmazeutischen Industrie 6, 1995.
@@ -34,6 +37,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .diagnostics import SHAPE_LIMIT
 from .ttest import Reason
 
 __all__ = ["MAX_PROJECTED", "SIZING_CHANCE", "bound_chance", "choose_claim", "passes_to_bound"]
@@ -60,15 +64,18 @@ def _standard_errors(tested, n_ref: int, n_test: int, passes):
         return np.sqrt(at) / scale
 
 
-def bound_chance(tested, trusted: np.ndarray, n_ref: int, n_test: int, passes: int, level: float,
-                 tolerance: float) -> float:  # fmt: skip
+def bound_chance(tested, n_ref: int, n_test: int, passes: int, level: float, tolerance: float) -> float:
     """The probability that every tile-channel of one size is bounded within `tolerance` at `passes` a side if the
-    sides agree, its intervals at two-sided error `level` (see the module docstring). `trusted`: the tiles whose
-    Welch samples are normal enough to be bounded (per tile; broadcast over channels)."""
+    sides agree, its intervals at two-sided error `level` (see the module docstring). A tile whose Welch samples
+    are not normal now is trusted there again where its shape allows it at `passes` (`diagnostics.SHAPE_LIMIT`)."""
     from scipy import special  # here: the package is imported where scipy is not (a stock Blender)
 
     reasons = tested.result.reason
-    valid = (reasons == Reason.VALID) & np.asarray(trusted)[..., None]
+    suspect = tested.suspect
+    if tested.excess is not None:
+        with np.errstate(invalid="ignore"):
+            suspect = suspect & ~(tested.excess / passes <= SHAPE_LIMIT)
+    valid = (reasons == Reason.VALID) & ~suspect.any(axis=-1)[..., None]
     equal = reasons == Reason.ZERO_VARIANCE
     if not np.all(valid | equal):
         return 0.0  # some tile-channel no number of passes bounds as things stand
@@ -85,14 +92,14 @@ def bound_chance(tested, trusted: np.ndarray, n_ref: int, n_test: int, passes: i
     return float(np.exp(np.sum(np.log(each))))
 
 
-def passes_to_bound(tested, trusted, n_ref: int, n_test: int, level: float, tolerance: float,
-                    floor: int, chance: float = SIZING_CHANCE) -> int | None:  # fmt: skip
+def passes_to_bound(tested, n_ref: int, n_test: int, level: float, tolerance: float, floor: int,
+                    chance: float = SIZING_CHANCE) -> int | None:  # fmt: skip
     """The fewest passes a side (at least `floor`) at which every tile-channel of one size is bounded with
     probability `chance` if the sides agree (`bound_chance`); None where no number of passes up to MAX_PROJECTED
     reaches it (a fixed reference too noisy for the tolerance, untrusted tiles, a reference mean of 0)."""
 
     def enough(passes: int) -> bool:
-        return bound_chance(tested, trusted, n_ref, n_test, passes, level, tolerance) >= chance
+        return bound_chance(tested, n_ref, n_test, passes, level, tolerance) >= chance
 
     if not enough(MAX_PROJECTED):
         return None
