@@ -35,6 +35,8 @@ assays: a-priori ordered hypotheses", Biometrie in der chemisch-pharmazeutischen
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .diagnostics import SHAPE_LIMIT
@@ -49,47 +51,75 @@ SIZING_CHANCE = 0.8
 #: Projections beyond this many passes a side say "not within reach" (None): nobody renders them.
 MAX_PROJECTED = 10**8
 
+#: A projection is a planning figure, "about N passes": found to within this share of N.
+PRECISION = 0.005
 
-def _standard_errors(tested, n_ref: int, n_test: int, passes):
-    """The relative standard error of each tile-channel's estimate at `passes` a side (an array broadcast against
-    the grid): both sides grow with equal counts or paired runs, only the test side against a fixed reference."""
-    se2 = tested.result.standard_error**2
-    scale = np.abs(tested.ref_mean)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        if tested.kind == "paired" or n_ref == n_test:
-            at = se2 * (n_test / passes)
-        else:
-            ref_part = np.minimum(tested.ref_var, se2)
-            at = ref_part + (se2 - ref_part) * (n_test / passes)
-        return np.sqrt(at) / scale
+
+class _Projection:
+    """One size's tile-channels as they would be at N passes a side if the sides agree (see the module
+    docstring): everything that does not depend on N computed once, so that the search for N is cheap."""
+
+    def __init__(self, tested, n_ref: int, n_test: int, level: float, tolerance: float):
+        from scipy import special  # here: the package is imported where scipy is not (a stock Blender)
+
+        self.special, self.level, self.tolerance = special, level, tolerance
+        reasons = tested.result.reason
+        valid = reasons == Reason.VALID
+        # the passes from which each tile-channel's tile is trusted (0: now; inf: never, a suspect tile whose
+        # shape is unknown)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            excess = tested.excess if tested.excess is not None else np.full(valid.shape, np.inf)
+            trusted_from = np.where(tested.suspect, np.nan_to_num(excess / SHAPE_LIMIT, nan=np.inf), 0.0)
+        self.trusted_from = np.broadcast_to(trusted_from.max(axis=-1)[..., None], valid.shape)[valid]
+        self.blocked = bool(np.any(~valid & (reasons != Reason.ZERO_VARIANCE)))  # no number of passes bounds it
+        self.count = int(valid.sum())
+        pixel = tested.pixel if tested.pixel is not None else np.zeros(valid.shape, bool)
+        self.pixel = pixel[valid]
+        se2 = tested.result.standard_error[valid] ** 2
+        scale2 = tested.ref_mean[valid] ** 2
+        with np.errstate(invalid="ignore", divide="ignore"):
+            if tested.kind == "paired" or n_ref == n_test:  # both sides grow: se^2 n / N
+                self.fixed, self.growing = np.zeros_like(se2), se2 * n_test / scale2
+            else:  # a fixed reference: only the test side's part shrinks
+                ref_part = np.minimum(tested.ref_var[valid], se2)
+                self.fixed, self.growing = ref_part / scale2, (se2 - ref_part) * n_test / scale2
+
+    def chance(self, passes: int) -> float:
+        if self.blocked or np.any(self.trusted_from > passes):
+            return 0.0  # some tile-channel no number of passes (or not this one) bounds as things stand
+        if not self.count:
+            return 1.0
+        special = self.special
+        q = 1.0 - self.level / 2.0
+        # the tile sums' test has n - 1 degrees of freedom at looks, the pixel test's are many
+        c = np.where(self.pixel, special.ndtri(q), special.stdtrit(max(passes - 1, 1), q))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            each = 2.0 * special.ndtr(self.tolerance / np.sqrt(self.fixed + self.growing / passes) - c) - 1.0
+        if not np.all(np.isfinite(each)) or np.any(each <= 0.0):
+            return 0.0
+        return float(np.exp(np.sum(np.log(each))))
+
+    def bracket(self, chance: float, floor: int) -> tuple[float, float]:
+        """Pass counts below which the chance can't be reached (each tile-channel alone at `chance`) and from which
+        it is with a normal critical value (each at chance^(1 / count)); a t quantile may need more than the
+        second, never less than the first."""
+        special = self.special
+        z = special.ndtri(1.0 - self.level / 2.0)
+        start = max(float(floor), float(np.max(self.trusted_from, initial=0.0)))
+
+        def need(each: float) -> float:
+            room = (self.tolerance / (z + special.ndtri((1.0 + each) / 2.0))) ** 2 - self.fixed
+            with np.errstate(invalid="ignore", divide="ignore"):
+                return float(np.max(np.where(room > 0, self.growing / room, np.inf), initial=start))
+
+        return max(start, need(chance)), max(start, need(chance ** (1.0 / max(self.count, 1))))
 
 
 def bound_chance(tested, n_ref: int, n_test: int, passes: int, level: float, tolerance: float) -> float:
     """The probability that every tile-channel of one size is bounded within `tolerance` at `passes` a side if the
     sides agree, its intervals at two-sided error `level` (see the module docstring). A tile whose Welch samples
     are not normal now is trusted there again where its shape allows it at `passes` (`diagnostics.SHAPE_LIMIT`)."""
-    from scipy import special  # here: the package is imported where scipy is not (a stock Blender)
-
-    reasons = tested.result.reason
-    suspect = tested.suspect
-    if tested.excess is not None:
-        with np.errstate(invalid="ignore"):
-            suspect = suspect & ~(tested.excess / passes <= SHAPE_LIMIT)
-    valid = (reasons == Reason.VALID) & ~suspect.any(axis=-1)[..., None]
-    equal = reasons == Reason.ZERO_VARIANCE
-    if not np.all(valid | equal):
-        return 0.0  # some tile-channel no number of passes bounds as things stand
-    if not valid.any():
-        return 1.0
-    pixel = tested.pixel if tested.pixel is not None else np.zeros(valid.shape, bool)
-    df = np.where(pixel, np.inf, max(passes - 1, 1))  # the tile sums' test has n - 1 degrees of freedom at looks
-    c = special.stdtrit(df, 1.0 - level / 2.0)
-    se = _standard_errors(tested, n_ref, n_test, passes)[valid]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        each = 2.0 * special.ndtr(tolerance / se - c[valid]) - 1.0
-    if not np.all(np.isfinite(each)) or np.any(each <= 0.0):
-        return 0.0
-    return float(np.exp(np.sum(np.log(each))))
+    return _Projection(tested, n_ref, n_test, level, tolerance).chance(passes)
 
 
 def passes_to_bound(tested, n_ref: int, n_test: int, level: float, tolerance: float, floor: int,
@@ -97,19 +127,23 @@ def passes_to_bound(tested, n_ref: int, n_test: int, level: float, tolerance: fl
     """The fewest passes a side (at least `floor`) at which every tile-channel of one size is bounded with
     probability `chance` if the sides agree (`bound_chance`); None where no number of passes up to MAX_PROJECTED
     reaches it (a fixed reference too noisy for the tolerance, untrusted tiles, a reference mean of 0)."""
+    projection = _Projection(tested, n_ref, n_test, level, tolerance)
 
-    def enough(passes: int) -> bool:
-        return bound_chance(tested, n_ref, n_test, passes, level, tolerance) >= chance
+    def enough(passes: float) -> bool:
+        return projection.chance(int(math.ceil(passes))) >= chance
 
-    if not enough(MAX_PROJECTED):
+    if enough(floor):
+        return floor
+    low, high = projection.bracket(chance, floor)
+    if not (math.isfinite(low) and low <= MAX_PROJECTED and enough(MAX_PROJECTED)):
         return None
-    low, high = floor, MAX_PROJECTED
-    if enough(low):
-        return low
-    while high - low > 1:  # the chance grows with the passes: bisect for the first that suffices
-        middle = (low + high) // 2
+    high = min(max(high, low + 1.0), MAX_PROJECTED)
+    while not enough(high):  # a t quantile's few degrees of freedom need more than the normal bracket
+        low, high = high, min(2.0 * high, MAX_PROJECTED)
+    while high - low > max(1.0, PRECISION * low):  # the chance grows with the passes: bisect to the first that does
+        middle = (low + high) / 2.0
         low, high = (low, middle) if enough(middle) else (middle, high)
-    return high
+    return int(math.ceil(high))
 
 
 def choose_claim(projected: list[tuple[int, int | None]], budget: int) -> int:
