@@ -167,14 +167,16 @@ class Use:
     """How one place takes an option, where it differs from the option's declaration: its default (`SAME`: the
     option's), its help (None: the option's; ``{default}`` in it is replaced by the default, else a default that
     is not None is added as ``(default X)``), `required` (no default), `deferred` (the parser leaves None and the
-    command applies the default itself: --max-passes only without --max-seconds) and the help of the test side's
-    flag where it has one of its own (`test_help`)."""
+    command applies the default itself: --max-passes only without --max-seconds), the help of the test side's
+    flag where it has one of its own (`test_help`) and whether the place takes ``auto`` (`auto`: None, which the
+    command resolves; a panel's property shows it as 0)."""
 
     default: Any = SAME
     help: str | None = None
     required: bool = False
     deferred: bool = False
     test_help: str | None = None
+    auto: bool = False  # ``auto`` is a value here: None, which the command resolves (check's --spp)
 
 
 _USE = Use()
@@ -263,10 +265,19 @@ OPTIONS = {
             number=True,
             sides=_BOTH,
             draws=True,
-            uses=dict.fromkeys((*_JOB, "addon"), _USE)
+            uses=dict.fromkeys(_JOB, _USE)
             | {
                 "render": Use(required=True, help=f"samples per pixel per pass (at most {MAX_SPP})"),
                 "ingest": Use(required=True, help="samples per pixel of each pass"),
+                "check": Use(
+                    None,
+                    "samples per pixel per pass, or auto (default {default}): 1, unless the sides differ in a "
+                    "setting that acts only above some samples per render (path guiding, a blue-noise or "
+                    "Sobol-Burley pattern, automatic scrambling distance): then the scene files' own samples, and "
+                    "at least those it acts at; a scene file is opened once to read them",
+                    auto=True,
+                ),
+                "addon": Use(None, auto=True),
             },
         ),
         Option(
@@ -613,13 +624,13 @@ def default(dest: str, place: str):
     return OPTIONS[dest].default_for(place)
 
 
-def argparse_type(option: Option, flag: str | None = None) -> Callable[[str], Any]:
+def argparse_type(option: Option, flag: str | None = None, auto: bool = False) -> Callable[[str], Any]:
     """The option's check as an argparse ``type`` (its error as argparse's, which names the flag); ``off`` is
-    None where the option has `Option.off`."""
+    None where the option has `Option.off`, ``auto`` where the place takes it (`auto`)."""
     flag = flag or option.flag
 
     def convert(value: str):
-        if option.off and value.strip().lower() == "off":
+        if option.off and value.strip().lower() == "off" or auto and value.strip().lower() == "auto":
             return None
         try:
             return option.convert(flag, value)
@@ -648,8 +659,9 @@ def add_options(parser, command: str, dests: Iterable[str], side: str = "referen
             what = option.help.split(",")[0].split(" (")[0]
             help_text = use.test_help or f"the test side's {what} (default: the reference's)"
             value = shown = () if option.many else None
+        auto = use.auto and side == "reference"
         if "{default}" in help_text:
-            help_text = help_text.format(default=option.show(shown))
+            help_text = help_text.format(default="auto" if auto and shown is None else option.show(shown))
         elif shown not in (None, [], ()) and not use.required:
             help_text += f" (default {option.show(shown)})"
         kwargs: dict[str, Any] = {"dest": dest_name, "help": help_text.replace("%", "%%")}
@@ -661,7 +673,7 @@ def add_options(parser, command: str, dests: Iterable[str], side: str = "referen
         elif option.kind == "choice" and side == "reference":
             kwargs["choices"] = option.choices
         else:
-            kwargs["type"] = argparse_type(option, flag)
+            kwargs["type"] = argparse_type(option, flag, auto)
         if option.many:
             kwargs |= {"action": "append", "default": []}
         elif use.required:

@@ -197,7 +197,7 @@ def test_the_panel_asks_for_the_check_the_command_line_describes(scene, tmp_path
 
     settings = scene.welch_bias
     declared = CheckRequest(out="")
-    assert (settings.spp, settings.tile, settings.device) == (declared.spp, declared.tile, declared.device)
+    assert (settings.spp or None, settings.tile, settings.device) == (declared.spp, declared.tile, declared.device)
     assert (session.alpha_of(settings), settings.tolerance / 100) == (declared.alpha, pytest.approx(declared.tolerance))
     blend = tmp_path / "scene.blend"
     blend.write_bytes(b"BLENDER")  # the request checks that the file exists; nothing renders here
@@ -210,6 +210,24 @@ def test_the_panel_asks_for_the_check_the_command_line_describes(scene, tmp_path
             "--tolerance", "0.5%", "--set", "cycles.blur_glossy=0", "--blender", "/usr/bin/blender",
             "--test-blender", "/opt/blender-5.2/blender", "--unpaired"]  # fmt: skip
     assert check_job(request) == check_job_from_args(build_parser().parse_args(argv))
+
+
+def test_the_panels_auto_samples_read_its_own_scenes(scene, tmp_path):
+    """Samples per Pass 0 is --spp auto: the sides' scenes are read from this file, not by a render process; an
+    override of path guiding renders the scene's own samples."""
+    from batch.decide.check import check_job
+
+    settings = scene.welch_bias
+    blend = tmp_path / "scene.blend"
+    blend.write_bytes(b"BLENDER")
+    scene.cycles.samples = 24
+    bpy.ops.welch_bias.override_add(text="cycles.use_guiding=True")
+    assert settings.spp == 0
+    request = session.check_request(settings, scene, str(blend), tmp_path / "run", False)
+    assert request.spp is None
+    job = check_job(request, probe=session.scene_samples)
+    assert (job.reference.spp, job.test.spp) == (24, 24)
+    assert job.auto_samples["differing"] == [{"name": "use_guiding", "values": [False, True], "fewest": 2}]
 
 
 def test_checks_of_the_setup(scene, tmp_path):
