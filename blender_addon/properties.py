@@ -146,6 +146,12 @@ class WELCH_BIAS_PG_settings(bpy.types.PropertyGroup):
         **_declared("spp"),
         soft_max=64,
     )
+    seed_offset: IntProperty(
+        name="Seed Offset",
+        description="Shift both sides' seeds: the same check on other passes, an independent second answer",
+        **_declared("seed_offset"),
+        soft_max=1_000_000,
+    )
     tile: IntProperty(
         name="Tile Size",
         description="Edge of the finest square pixel tiles tested (their 2x2, 4x4, ... blocks are tested too)",

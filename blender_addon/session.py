@@ -83,7 +83,7 @@ def settings_key(settings, scene) -> tuple:
     return (
         bpy.data.filepath, settings.mode, names, tuple(settings.enabled_overrides()), settings.max_passes,
         settings.paired, settings.spp, settings.tile, settings.device, settings.use_lobes, settings.tolerance,
-        settings.test_build,
+        settings.test_build, settings.seed_offset,
     )  # fmt: skip
 
 
@@ -111,6 +111,7 @@ def check_request(settings, scene, blend: str, folder: Path, resume: bool, blend
         alpha=alpha_of(settings),
         tolerance=tolerance_of(settings),
         unpaired=not settings.paired,
+        seed_offset=settings.seed_offset,
         resume=resume,
     )
 

@@ -148,6 +148,7 @@ def _add_check(sub) -> None:
     add_options(k, "check", ("spp", "tile", "resolution", "device", "sampling_pattern", "lobes"))
     add_options(k, "check", TEST_SIDE, side="test")
     k.add_argument("--unpaired", action="store_true", help="disjoint seeds even on one build (an A/A check)")
+    add_options(k, "check", ("seed_offset",))
     add_cluster_arguments(k)
     k.add_argument("--resume", action="store_true", help="continue a stopped check in --out")
     k.add_argument("--json-progress", action="store_true", help="one JSON line per event on stdout, for programs")
@@ -275,14 +276,7 @@ def _add_suite(sub) -> None:
             add_options(a, "suite run", ("overrides",))
             a.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")
             add_cluster_arguments(a)
-            a.add_argument(
-                "--seed-offset",
-                type=jobs.non_negative_int,
-                default=0,
-                metavar="N",
-                help="start the test seeds N after the reference's (default 0: a rerun gives the same answer; a "
-                "nightly run can pass a new N for new passes)",
-            )
+            add_options(a, "suite run", ("seed_offset",))
 
 
 def _add_matrix(sub) -> None:

@@ -70,6 +70,7 @@ class CheckJob:
     #: Render the passes on a Dask cluster (batch.jobs.distributed): local worker processes, or a running cluster.
     workers: int | None = None
     scheduler: str | None = None
+    seed_offset: int = 0  # both sides' seeds shifted by it (--seed-offset): another, independent check
     auto_samples: dict | None = None  # why --spp auto renders more than 1 sample a pass (`AutoSamples.to_json`)
 
     def plan(self, max_passes: int, early_share: float | None = None, started: dict | None = None) -> wc.SequentialPlan:
@@ -185,9 +186,7 @@ class Check:
             stored_record, record = state.get(side.name), _side_record(side.job)
             if stored_record != record:
                 if not _reseeded(stored_record, record):
-                    raise BatchError(
-                        f"can't resume {self.job.out}: the {side.name} side was started with other arguments"
-                    )
+                    raise BatchError(_not_resumable(self.job.out, side.name, stored_record, record))
                 grown.append(side.name)
         stored = None
         if state.get("plan") is not None:  # None: stopped before a time budget became a pass budget
@@ -422,6 +421,26 @@ def _side_record(job: RenderJob) -> list[str]:
     return job.replace(resume=False, out=Path(job.out).name, pass_images=None).to_argv()
 
 
+def _not_resumable(out: str, name: str, stored: list[str] | None, record: list[str]) -> str:
+    """Why side `name` of the check in `out` can't be resumed with `record`: its seeds start elsewhere (another
+    --seed-offset), or other arguments."""
+    first = [_first_seed(r) for r in (stored, record)]
+    if None not in first and first[0] != first[1]:
+        why = "another --seed-offset" if name == "reference" else "another --seed-offset, or paired and unpaired"
+        return f"can't resume {out}: its {name} side was started on seeds from {first[0]}, not {first[1]} ({why})"
+    return f"can't resume {out}: the {name} side was started with other arguments"
+
+
+def _first_seed(record: list[str] | None) -> int | None:
+    """The first seed of a side's record (its arguments), or None."""
+    if not isinstance(record, list) or "--seeds" not in record[:-1]:
+        return None
+    try:
+        return parse_seeds(record[record.index("--seeds") + 1])[0]
+    except ValueError:
+        return None
+
+
 def _reseeded(stored: list[str] | None, record: list[str]) -> bool:
     """Whether side `record` is side `stored` with its seeds' list made longer or shorter at the end (another
     budget)."""
@@ -547,6 +566,7 @@ class CheckRequest:
     futility: bool = True
     pixel_variance: str = default("pixel_variance", "check")
     unpaired: bool = False
+    seed_offset: int = default("seed_offset", "check")
     resume: bool = False
     workers: int | None = None
     scheduler: str | None = None
@@ -590,8 +610,9 @@ def check_job(request: CheckRequest, probe=None) -> CheckJob:
         args.test_command or args.pass_command
     ) == args.pass_command  # fmt: skip
     paired = same_build and not args.unpaired
-    ref_seeds = range(count)
-    test_seeds = ref_seeds if paired else range(UNPAIRED_SEEDS, UNPAIRED_SEEDS + count)
+    offset = args.seed_offset
+    ref_seeds = range(offset, offset + count)
+    test_seeds = ref_seeds if paired else range(UNPAIRED_SEEDS + offset, UNPAIRED_SEEDS + offset + count)
     out = Path(args.out)
     common = {
         "spp": args.spp or 1,  # auto: resolved below
@@ -659,6 +680,7 @@ def check_job(request: CheckRequest, probe=None) -> CheckJob:
         resume=args.resume,
         workers=args.workers,
         scheduler=args.scheduler,
+        seed_offset=offset,
         auto_samples=auto.to_json(),
     )
 

@@ -21,7 +21,7 @@ from typing import Any
 
 from ..errors import BatchError
 from .lobes import LOBES, parse_lobes
-from .seeds import MAX_PASSES
+from .seeds import MAX_PASSES, MAX_SEED
 
 #: Cycles' largest render side (it clamps larger values) and largest samples per pixel (2**24).
 MAX_RESOLUTION = 65536
@@ -30,6 +30,9 @@ MAX_SPP = 2**24
 MAX_SECONDS = 7 * 24 * 3600.0
 #: The largest tolerance, as a fraction (1000 %).
 MAX_TOLERANCE = 10.0
+#: The largest seed offset: an unpaired check's test seeds (from `MAX_PASSES`, `batch.decide.check`) and a
+#: budget of `MAX_PASSES` after it stay within Cycles' seeds.
+MAX_SEED_OFFSET = MAX_SEED + 1 - 2 * MAX_PASSES
 
 #: The devices a job may ask for: the CPU, the first GPU backend that has a device, or one backend.
 GPU_BACKENDS = ("OPTIX", "CUDA", "HIP", "METAL", "ONEAPI")
@@ -591,6 +594,27 @@ OPTIONS = {
             default="auto",
             choices=PIXEL_MODES,
             uses=dict.fromkeys(("check", "compare", "case"), _USE),
+        ),
+        Option(
+            "seed_offset",
+            "--seed-offset",
+            None,
+            "integer",
+            "shift both sides' seeds by N: the same check on other passes, an independent second answer (the "
+            "report records the seeds); --resume continues only with the offset it started with",
+            default=0,
+            low=0,
+            high=MAX_SEED_OFFSET,
+            metavar="N",
+            number=True,
+            uses={
+                "check": _USE,
+                "suite run": Use(
+                    help="start the test seeds N after the reference's (default {default}: a rerun gives the same "
+                    "answer; a nightly run can pass a new N for new passes)"
+                ),
+                "addon": _USE,
+            },
         ),
         Option(
             "alpha",

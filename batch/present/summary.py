@@ -466,6 +466,7 @@ def check_record(
         "max_seconds": job.max_seconds,
         "tolerance": job.tolerance,
         "paired": job.paired,
+        "seed_offset": job.seed_offset,
         "auto_samples": job.auto_samples,
         "spending": "pocock",
         "early_share": share,

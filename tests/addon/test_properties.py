@@ -11,7 +11,7 @@ from batch.jobs.options import OPTIONS  # noqa: E402
 pytestmark = pytest.mark.usefixtures("addon")  # registered for the module (tests/addon/conftest.py)
 
 #: The panel's property of each option it sets, and the factor it shows the value with (a tolerance in percent).
-PROPERTIES = {"spp": 1, "tile": 1, "max_passes": 1, "tolerance": 100.0, "alpha": 1, "device": 1}
+PROPERTIES = {"spp": 1, "tile": 1, "max_passes": 1, "tolerance": 100.0, "alpha": 1, "device": 1, "seed_offset": 1}
 
 
 def prop(name: str):
