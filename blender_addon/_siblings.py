@@ -8,12 +8,12 @@ bpy rendering code, no scipy): `presenting` imports what makes a result, when on
 try:
     from .. import welch_core
     from ..batch import errors
-    from ..batch.jobs import job, launch, lobes, options, overrides, protocol, rna, seeds
+    from ..batch.jobs import job, launch, lobes, options, overrides, protocol, rna, samples, seeds
     from ..batch.present import fmt
 except ImportError:  # top-level from the repository: there is no parent package
     import welch_core
     from batch import errors
-    from batch.jobs import job, launch, lobes, options, overrides, protocol, rna, seeds
+    from batch.jobs import job, launch, lobes, options, overrides, protocol, rna, samples, seeds
     from batch.present import fmt
 
 #: The add-on's module name as Blender knows it (the extension's root package, or this package in tests).
@@ -52,6 +52,7 @@ __all__ = [
     "presenting",
     "protocol",
     "rna",
+    "samples",
     "seeds",
     "welch_core",
 ]

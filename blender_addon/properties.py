@@ -44,11 +44,14 @@ CHANNELS = (("R", "Red", "Red channel"), ("G", "Green", "Green channel"), ("B", 
 def _declared(dest: str, percent: bool = False) -> dict:
     """The default and the limits `batch.jobs.options` declares for the option `dest` at ``addon``, as a
     property's keywords (`percent`: a fraction shown in percent). A limit the option excludes (alpha's 0 and 1) is
-    left to the property, which can only include its limits."""
+    left to the property, which can only include its limits; an option the panel takes as ``auto`` is 0 there,
+    its default."""
     option = options.OPTIONS[dest]
     scale = 100.0 if percent else 1
     found = {"default": option.default_for("addon") * scale if percent else option.default_for("addon")}
-    if option.low is not None and not option.open_low:
+    if option.use("addon").auto:
+        found = {"default": 0, "min": 0}
+    elif option.low is not None and not option.open_low:
         found["min"] = option.low * scale
     if option.high is not None and not option.open_high:
         found["max"] = option.high * scale
@@ -137,7 +140,17 @@ class WELCH_BIAS_PG_settings(bpy.types.PropertyGroup):
         subtype="FILE_PATH",
     )
     spp: IntProperty(
-        name="Samples per Pass", description="Cycles samples of each pass", **_declared("spp"), soft_max=64
+        name="Samples per Pass",
+        description="Cycles samples of each pass. 0: Auto, 1 unless the sides differ in a setting that acts only "
+        "above some samples per render (path guiding, a blue-noise pattern), then the scene's own samples",
+        **_declared("spp"),
+        soft_max=64,
+    )
+    seed_offset: IntProperty(
+        name="Seed Offset",
+        description="Shift both sides' seeds: the same check on other passes, an independent second answer",
+        **_declared("seed_offset"),
+        soft_max=1_000_000,
     )
     tile: IntProperty(
         name="Tile Size",

@@ -15,7 +15,7 @@ from pathlib import Path
 import bpy
 
 from . import checks, preferences, runner
-from ._siblings import ADDON_MODULE, checking, lobes, options
+from ._siblings import ADDON_MODULE, checking, lobes, options, samples
 from .state import RunFolder, current
 
 
@@ -83,7 +83,7 @@ def settings_key(settings, scene) -> tuple:
     return (
         bpy.data.filepath, settings.mode, names, tuple(settings.enabled_overrides()), settings.max_passes,
         settings.paired, settings.spp, settings.tile, settings.device, settings.use_lobes, settings.tolerance,
-        settings.test_build,
+        settings.test_build, settings.seed_offset,
     )  # fmt: skip
 
 
@@ -100,7 +100,7 @@ def check_request(settings, scene, blend: str, folder: Path, resume: bool, blend
         test_blend=blend if test != reference else None,
         test_blend_scene=test.name if test != reference else None,
         overrides=tuple(settings.enabled_overrides()),
-        spp=settings.spp,
+        spp=settings.spp or None,  # 0: auto
         tile=settings.tile,
         device=settings.device,
         lobes=_lobes(settings, scene) if settings.use_lobes else (),
@@ -111,8 +111,15 @@ def check_request(settings, scene, blend: str, folder: Path, resume: bool, blend
         alpha=alpha_of(settings),
         tolerance=tolerance_of(settings),
         unpaired=not settings.paired,
+        seed_offset=settings.seed_offset,
         resume=resume,
     )
+
+
+def scene_samples(jobs) -> list:
+    """What each side's scene asks of the passes (``--spp auto``), read from this file's own scenes: a run renders
+    a copy of it (`batch.decide.check.check_job`'s `probe`)."""
+    return [samples.scene_samples(bpy.data.scenes[job.blend_scene]) for _name, job in jobs]
 
 
 def _lobes(settings, scene) -> tuple[str, ...]:
@@ -135,7 +142,8 @@ def start(context, settings, resume: bool) -> runner.CheckRun:
     elif not blend.is_file():
         raise OSError(f"the stopped run's copy of the scene is gone ({blend}): start a new run")
     request = check_request(settings, context.scene, str(blend), folder, resume, blender_binary(context))
-    job = checking().check_job(request)
+    # --spp auto reads the scenes: this file's own for a new run (its copy is this file), the copy on a resume
+    job = checking().check_job(request, probe=None if resume else scene_samples)
     # Render processes started with this Python (the bpy module) find the extension's wheels.
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([*extension_wheel_paths(), *filter(None, [env.get("PYTHONPATH")])])

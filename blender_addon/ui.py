@@ -83,6 +83,7 @@ def draw_setup(layout, settings) -> None:
     col.prop(settings, "tolerance")
     col.prop(settings, "spp")
     col.prop(settings, "paired")
+    col.prop(settings, "seed_offset")
     col.prop(settings, "tile")
     col.prop(settings, "device")
     col.prop(settings, "use_lobes")

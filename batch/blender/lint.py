@@ -2,7 +2,9 @@
 
 The rules are a table: each names a setting by its override path (``batch.overrides`` syntax, so a finding can
 be fixed with ``--set PATH=VALUE``), says when it is flagged, what the unbiased value is and why it matters.
-Effects quoted are those measured in ``BLENDER_FACTS.md`` (64², 200 passes of 1 spp per side).
+Effects quoted are those measured in ``BLENDER_FACTS.md`` (64², 200 passes of 1 spp per side). Settings that act
+only above some samples per render are `batch.jobs.samples`' table; `sample_findings` names those a scene's own
+renders reach.
 """
 
 from __future__ import annotations
@@ -12,12 +14,14 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 from ..jobs.rna import jsonable
+from ..jobs.samples import acting, scene_samples
 from .scenes import CYCLES_MAX_BOUNCES as MAX_BOUNCES
 
 BIASED = "biased"  # the converged image differs from the unbiased one
 NOT_INDEPENDENT = "not-independent"  # passes are not independent or not reproducible: the test's assumptions fail
 INFO = "info"  # unbiased, but it changes the variance or must match on both sides
-SEVERITIES = (BIASED, NOT_INDEPENDENT, INFO)
+SAMPLES = "samples"  # acts only above some samples per render: passes of fewer do not show it
+SEVERITIES = (BIASED, NOT_INDEPENDENT, INFO, SAMPLES)
 
 
 @dataclass(frozen=True)
@@ -32,7 +36,8 @@ class Finding:
 
     def format(self) -> str:
         """One line for the terminal."""
-        return f"{self.severity:<15} {self.path} = {self.value!r} (unbiased: {self.unbiased!r}): {self.explanation}"
+        unbiased = f" (unbiased: {self.unbiased!r})" if self.severity != SAMPLES else ""
+        return f"{self.severity:<15} {self.path} = {self.value!r}{unbiased}: {self.explanation}"
 
 
 @dataclass(frozen=True)
@@ -137,6 +142,20 @@ def lint_scene(scene, rules: tuple[Rule, ...] = RULES) -> list[Finding]:
             if rule.flagged(value):
                 findings.append(Finding(path, jsonable(value), rule.unbiased, rule.severity, rule.explanation))
     return findings
+
+
+def sample_findings(scene) -> list[Finding]:
+    """The settings of `scene` that act only above some samples per render (`batch.jobs.samples`) and do act at
+    its own samples: passes of fewer samples (``check --spp``) cannot show them. Severity `SAMPLES`, no unbiased
+    value (they are not biased for it)."""
+    own = scene_samples(scene)
+    return [
+        Finding(path, found.value, None, SAMPLES,
+                f"acts only from {found.fewest} samples per render and the scene renders {own.samples}: passes of "
+                f"fewer samples (check --spp) do not show it; {found.setting.documented}")
+        for path, found in acting(own.settings).items()
+        if found.fewest <= own.samples
+    ]  # fmt: skip
 
 
 def _values(scene, path: str) -> Iterator[tuple[str, object]]:

@@ -32,7 +32,7 @@ from .._siblings import welch_core as wc
 from ..errors import BatchError, Exit
 from ..jobs import job as jobs
 from ..jobs.options import TEST_SIDE, add_options
-from ..jobs.protocol import SigtermAsInterrupt, verdict_exit
+from ..jobs.protocol import Probed, SigtermAsInterrupt, verdict_exit
 
 INPUT_ERRORS = (BatchError, wc.WelchInputError, OSError)
 
@@ -96,6 +96,12 @@ def _add_render(sub) -> None:
         "scene stays loaded, the statistics are saved after each chunk; or a JSON line "
         '{"seeds": [...], "out": FILE} renders exactly those seeds into FILE',
     )
+    r.add_argument(
+        "--probe",
+        action="store_true",
+        help="for programs: render nothing, only open the scene and print what it asks of the passes (its own "
+        "samples and its settings that act only above some samples per render) as one JSON event",
+    )
     add_cluster_arguments(r)
     r.add_argument(
         "--chunk",
@@ -142,6 +148,7 @@ def _add_check(sub) -> None:
     add_options(k, "check", ("spp", "tile", "resolution", "device", "sampling_pattern", "lobes"))
     add_options(k, "check", TEST_SIDE, side="test")
     k.add_argument("--unpaired", action="store_true", help="disjoint seeds even on one build (an A/A check)")
+    add_options(k, "check", ("seed_offset",))
     add_cluster_arguments(k)
     k.add_argument("--resume", action="store_true", help="continue a stopped check in --out")
     k.add_argument("--json-progress", action="store_true", help="one JSON line per event on stdout, for programs")
@@ -269,14 +276,7 @@ def _add_suite(sub) -> None:
             add_options(a, "suite run", ("overrides",))
             a.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")
             add_cluster_arguments(a)
-            a.add_argument(
-                "--seed-offset",
-                type=jobs.non_negative_int,
-                default=0,
-                metavar="N",
-                help="start the test seeds N after the reference's (default 0: a rerun gives the same answer; a "
-                "nightly run can pass a new N for new passes)",
-            )
+            add_options(a, "suite run", ("seed_offset",))
 
 
 def _add_matrix(sub) -> None:
@@ -406,7 +406,9 @@ def cmd_render(args) -> int:
 
     job = jobs.RenderJob.from_args(args)
     progress = Progress(len(job.seeds), args.json_progress)
-    if args.workers or args.scheduler:
+    if args.probe:
+        _probe(job, progress)
+    elif args.workers or args.scheduler:
         if args.serve:
             raise BatchError("--serve renders in this process: it does not go with --workers or --scheduler")
         from ..jobs.distributed import cluster, render_distributed
@@ -427,6 +429,28 @@ def cmd_render(args) -> int:
 
         render_run(job, progress, chunk_requests(sys.stdin) if args.serve else None)
     return Exit.OK
+
+
+def _probe(job: jobs.RenderJob, progress) -> None:
+    """``render --probe``: what the job's scene asks of the passes (`batch.jobs.samples.SceneSamples`), read in
+    this process or in the job's own build."""
+    if job.command is not None:
+        raise BatchError("--probe reads a Cycles scene: another renderer's --command has none")
+    if job.blender or job.python:
+        from ..jobs.side import Side
+
+        side = Side(None, job, warn=progress.warning)
+        side.start_probe()
+        found = side.probed()
+    else:
+        from ..jobs.launch import require_bpy
+
+        require_bpy(job)
+        from ..blender.render import open_scene
+        from ..jobs.samples import scene_samples
+
+        found = scene_samples(open_scene(job.blend, job.scene, job.blend_scene))
+    progress.emit(Probed(samples=found.samples, settings=found.settings))
 
 
 def cmd_ingest(args) -> int:
@@ -549,10 +573,11 @@ def cmd_merge(args) -> int:
 
 
 def cmd_lint(args) -> int:
-    from ..blender.lint import lint_scene
+    from ..blender.lint import lint_scene, sample_findings
     from ..blender.render import open_scene
 
-    findings = lint_scene(open_scene(args.blend, None, args.blend_scene))
+    scene = open_scene(args.blend, None, args.blend_scene)
+    findings = lint_scene(scene) + sample_findings(scene)
     for finding in findings:
         print(finding.format())
     biased = [f for f in findings if f.severity in ("biased", "not-independent")]

@@ -28,8 +28,9 @@ from ..jobs.distributed import Cluster, ClusterSide, cluster
 from ..jobs.job import RenderJob
 from ..jobs.options import TEST_SIDE, default
 from ..jobs.pairs import PixelPairs
+from ..jobs.samples import BUILTIN, AutoSamples, SceneSamples, auto_samples, side_settings
 from ..jobs.seeds import MAX_PASSES, parse_seeds
-from ..jobs.side import Side
+from ..jobs.side import Side, probe_scenes
 from ..present.progress import Progress
 
 STATE_FILE = "check.json"
@@ -69,6 +70,8 @@ class CheckJob:
     #: Render the passes on a Dask cluster (batch.jobs.distributed): local worker processes, or a running cluster.
     workers: int | None = None
     scheduler: str | None = None
+    seed_offset: int = 0  # both sides' seeds shifted by it (--seed-offset): another, independent check
+    auto_samples: dict | None = None  # why --spp auto renders more than 1 sample a pass (`AutoSamples.to_json`)
 
     def plan(self, max_passes: int, early_share: float | None = None, started: dict | None = None) -> wc.SequentialPlan:
         """The design for `max_passes`; a resumed check keeps the early share it was started with (None: the
@@ -187,9 +190,7 @@ class Check:
             stored_record, record = state.get(side.name), _side_record(side.job)
             if stored_record != record:
                 if not _reseeded(stored_record, record):
-                    raise BatchError(
-                        f"can't resume {self.job.out}: the {side.name} side was started with other arguments"
-                    )
+                    raise BatchError(_not_resumable(self.job.out, side.name, stored_record, record))
                 grown.append(side.name)
         stored = None
         if state.get("plan") is not None:  # None: stopped before a time budget became a pass budget
@@ -430,6 +431,26 @@ def _side_record(job: RenderJob) -> list[str]:
     return job.replace(resume=False, out=Path(job.out).name, pass_images=None).to_argv()
 
 
+def _not_resumable(out: str, name: str, stored: list[str] | None, record: list[str]) -> str:
+    """Why side `name` of the check in `out` can't be resumed with `record`: its seeds start elsewhere (another
+    --seed-offset), or other arguments."""
+    first = [_first_seed(r) for r in (stored, record)]
+    if None not in first and first[0] != first[1]:
+        why = "another --seed-offset" if name == "reference" else "another --seed-offset, or paired and unpaired"
+        return f"can't resume {out}: its {name} side was started on seeds from {first[0]}, not {first[1]} ({why})"
+    return f"can't resume {out}: the {name} side was started with other arguments"
+
+
+def _first_seed(record: list[str] | None) -> int | None:
+    """The first seed of a side's record (its arguments), or None."""
+    if not isinstance(record, list) or "--seeds" not in record[:-1]:
+        return None
+    try:
+        return parse_seeds(record[record.index("--seeds") + 1])[0]
+    except ValueError:
+        return None
+
+
 def _reseeded(stored: list[str] | None, record: list[str]) -> bool:
     """Whether side `record` is side `stored` with its seeds' list made longer or shorter at the end (another
     budget)."""
@@ -533,7 +554,7 @@ class CheckRequest:
     test_blend: str | None = None
     test_blend_scene: str | None = None
     overrides: tuple[str, ...] = ()
-    spp: int = default("spp", "check")
+    spp: int | None = default("spp", "check")  # None: auto (`batch.jobs.samples.auto_samples`)
     tile: int = default("tile", "check")
     resolution: tuple[int, int] | None = None
     device: str = default("device", "check")
@@ -557,6 +578,7 @@ class CheckRequest:
     futility: bool = True
     pixel_variance: str = default("pixel_variance", "check")
     unpaired: bool = False
+    seed_offset: int = default("seed_offset", "check")
     resume: bool = False
     workers: int | None = None
     scheduler: str | None = None
@@ -572,8 +594,10 @@ def check_job_from_args(args) -> CheckJob:
     return check_job(CheckRequest.from_args(args))
 
 
-def check_job(request: CheckRequest) -> CheckJob:
-    """The check `request` describes, refused in one line where it can't work, before anything renders."""
+def check_job(request: CheckRequest, probe=None) -> CheckJob:
+    """The check `request` describes, refused in one line where it can't work, before anything renders. `probe`
+    reads what scene files ask of the passes for ``--spp auto`` (default `batch.jobs.side.probe_scenes`: a process
+    of each side's build opens its file; the add-on reads its own scenes)."""
     args = request
     if args.max_passes is not None and args.max_seconds is not None:
         raise BatchError("give --max-passes or --max-seconds, not both")
@@ -598,11 +622,12 @@ def check_job(request: CheckRequest) -> CheckJob:
         args.test_command or args.pass_command
     ) == args.pass_command  # fmt: skip
     paired = same_build and not args.unpaired
-    ref_seeds = range(count)
-    test_seeds = ref_seeds if paired else range(UNPAIRED_SEEDS, UNPAIRED_SEEDS + count)
+    offset = args.seed_offset
+    ref_seeds = range(offset, offset + count)
+    test_seeds = ref_seeds if paired else range(UNPAIRED_SEEDS + offset, UNPAIRED_SEEDS + offset + count)
     out = Path(args.out)
     common = {
-        "spp": args.spp,
+        "spp": args.spp or 1,  # auto: resolved below
         "tile": args.tile,
         "resolution": tuple(args.resolution) if args.resolution else None,
         "device": args.device,
@@ -636,10 +661,6 @@ def check_job(request: CheckRequest) -> CheckJob:
         command=args.test_command or args.pass_command,
         **(common | own),
     )
-    if paired and args.pixel_variance != "off" and args.workers is None and args.scheduler is None:
-        # Each side also writes its passes' images: the pixel test of paired runs needs each pixel's difference.
-        reference = reference.replace(pass_images=PixelPairs.folder(out, "reference"))
-        test = test.replace(pass_images=PixelPairs.folder(out, "test"))
     if sides_identical(reference, test):
         raise BatchError(
             "the two sides are identical by construction (same scene, build, settings and seeds): every difference "
@@ -650,6 +671,13 @@ def check_job(request: CheckRequest) -> CheckJob:
         for job in (reference, test):
             if Path(job.out).exists():
                 raise BatchError(f"{job.out} already exists: pass --resume to continue the check, or another --out")
+    auto = AutoSamples(args.spp) if args.spp is not None else _auto_samples(reference, test, probe)
+    reference = reference.replace(spp=auto.spp)
+    test = test.replace(spp=own.get("spp", auto.spp))
+    if paired and args.pixel_variance != "off" and args.workers is None and args.scheduler is None:
+        # Each side also writes its passes' images: the pixel test of paired runs needs each pixel's difference.
+        reference = reference.replace(pass_images=PixelPairs.folder(out, "reference"))
+        test = test.replace(pass_images=PixelPairs.folder(out, "test"))
     return CheckJob(
         reference=reference,
         test=test,
@@ -664,4 +692,29 @@ def check_job(request: CheckRequest) -> CheckJob:
         resume=args.resume,
         workers=args.workers,
         scheduler=args.scheduler,
+        seed_offset=offset,
+        auto_samples=auto.to_json(),
     )
+
+
+def _auto_samples(reference: RenderJob, test: RenderJob, probe=None) -> AutoSamples:
+    """``--spp auto`` (`batch.jobs.samples.auto_samples`): what each side's scene asks of the passes (a built-in
+    scene's is known; each scene file is read once, by `probe`), with the test side's pattern and overrides.
+    Another renderer's passes (``--command``) take 1 sample."""
+    if reference.command is not None:
+        return AutoSamples(1)
+    files = {}  # each scene file by what reads it: the file, its scene and the build
+    for name, job in (("reference", reference), ("test", test)):
+        if job.scene is None:
+            read = job.replace(seeds=(0,), spp=1, overrides=(), sampling_pattern=None, lobes=(), pass_images=None)
+            files.setdefault((job.blend, job.blend_scene, job.blender, job.python), (name, read))
+    found = dict(zip(files, (probe or probe_scenes)(list(files.values())), strict=True))
+    scenes: list[SceneSamples] = [
+        BUILTIN if job.scene is not None else found[(job.blend, job.blend_scene, job.blender, job.python)]
+        for job in (reference, test)
+    ]
+    settings = [
+        side_settings(scene, job.sampling_pattern, job.overrides)
+        for scene, job in zip(scenes, (reference, test), strict=True)
+    ]
+    return auto_samples(*scenes, *settings)

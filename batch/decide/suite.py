@@ -514,6 +514,7 @@ def _run_case(
             pixel_variance=case.pixel_variance,
             resume=resume,
             fixed_reference=True,
+            seed_offset=seed_offset,
         )
         verdict, summary = run_check(job, progress_factory(count), where)
     except BatchError as exc:

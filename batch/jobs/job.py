@@ -218,17 +218,6 @@ def positive_int(text: str) -> int:
     return value
 
 
-def non_negative_int(text: str) -> int:
-    """argparse type: an integer >= 0."""
-    try:
-        value = int(text)
-    except ValueError:
-        value = -1
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {text!r}")
-    return value
-
-
 def lobes_arg(text: str) -> tuple[str, ...]:
     """argparse type: ``all`` or a comma-separated list of `batch.lobes.LOBES`."""
     try:

@@ -79,8 +79,10 @@ def job_command(
     python_paths: tuple[str, ...] | list[str] = (),
     base_env: dict[str, str] | None = None,
     serve: bool = False,
+    probe: bool = False,
 ) -> Command:
-    """The command that renders `job` with ``--json-progress`` (and ``--serve``: in chunks asked for on stdin).
+    """The command that renders `job` with ``--json-progress`` (and ``--serve``: in chunks asked for on stdin;
+    ``--probe``: no pass, only what its scene asks of the passes, `protocol.Probed`).
 
     With ``job.blender``: that Blender opens the .blend (or starts from factory settings for a built-in scene)
     and runs the entry script with the job after ``--``. Without: ``python -m batch render`` with `python`, the
@@ -89,7 +91,7 @@ def job_command(
     env = dict(os.environ if base_env is None else base_env)
     env["PYTHONUNBUFFERED"] = "1"  # progress lines must arrive as they are printed, not when a buffer fills
     child = job.replace(blender=None)
-    mode = ["--json-progress", "--serve"] if serve else ["--json-progress"]
+    mode = ["--json-progress", *(["--serve"] if serve else []), *(["--probe"] if probe else [])]
     if job.blender:
         # Blender's own Python must not pick up another Python's packages: a pip OpenEXR crashes Blender 3.4.
         for name in ("PYTHONPATH", "PYTHONHOME"):

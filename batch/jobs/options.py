@@ -21,7 +21,7 @@ from typing import Any
 
 from ..errors import BatchError
 from .lobes import LOBES, parse_lobes
-from .seeds import MAX_PASSES
+from .seeds import MAX_PASSES, MAX_SEED
 
 #: Cycles' largest render side (it clamps larger values) and largest samples per pixel (2**24).
 MAX_RESOLUTION = 65536
@@ -30,6 +30,9 @@ MAX_SPP = 2**24
 MAX_SECONDS = 7 * 24 * 3600.0
 #: The largest tolerance, as a fraction (1000 %).
 MAX_TOLERANCE = 10.0
+#: The largest seed offset: an unpaired check's test seeds (from `MAX_PASSES`, `batch.decide.check`) and a
+#: budget of `MAX_PASSES` after it stay within Cycles' seeds.
+MAX_SEED_OFFSET = MAX_SEED + 1 - 2 * MAX_PASSES
 
 #: The devices a job may ask for: the CPU, the first GPU backend that has a device, or one backend.
 GPU_BACKENDS = ("OPTIX", "CUDA", "HIP", "METAL", "ONEAPI")
@@ -167,14 +170,16 @@ class Use:
     """How one place takes an option, where it differs from the option's declaration: its default (`SAME`: the
     option's), its help (None: the option's; ``{default}`` in it is replaced by the default, else a default that
     is not None is added as ``(default X)``), `required` (no default), `deferred` (the parser leaves None and the
-    command applies the default itself: --max-passes only without --max-seconds) and the help of the test side's
-    flag where it has one of its own (`test_help`)."""
+    command applies the default itself: --max-passes only without --max-seconds), the help of the test side's
+    flag where it has one of its own (`test_help`) and whether the place takes ``auto`` (`auto`: None, which the
+    command resolves; a panel's property shows it as 0)."""
 
     default: Any = SAME
     help: str | None = None
     required: bool = False
     deferred: bool = False
     test_help: str | None = None
+    auto: bool = False  # ``auto`` is a value here: None, which the command resolves (check's --spp)
 
 
 _USE = Use()
@@ -263,10 +268,19 @@ OPTIONS = {
             number=True,
             sides=_BOTH,
             draws=True,
-            uses=dict.fromkeys((*_JOB, "addon"), _USE)
+            uses=dict.fromkeys(_JOB, _USE)
             | {
                 "render": Use(required=True, help=f"samples per pixel per pass (at most {MAX_SPP})"),
                 "ingest": Use(required=True, help="samples per pixel of each pass"),
+                "check": Use(
+                    None,
+                    "samples per pixel per pass, or auto (default {default}): 1, unless the sides differ in a "
+                    "setting that acts only above some samples per render (path guiding, a blue-noise or "
+                    "Sobol-Burley pattern, automatic scrambling distance): then the scene files' own samples, and "
+                    "at least those it acts at; a scene file is opened once to read them",
+                    auto=True,
+                ),
+                "addon": Use(None, auto=True),
             },
         ),
         Option(
@@ -582,6 +596,27 @@ OPTIONS = {
             uses=dict.fromkeys(("check", "compare", "case"), _USE),
         ),
         Option(
+            "seed_offset",
+            "--seed-offset",
+            None,
+            "integer",
+            "shift both sides' seeds by N: the same check on other passes, an independent second answer (the "
+            "report records the seeds); --resume continues only with the offset it started with",
+            default=0,
+            low=0,
+            high=MAX_SEED_OFFSET,
+            metavar="N",
+            number=True,
+            uses={
+                "check": _USE,
+                "suite run": Use(
+                    help="start the test seeds N after the reference's (default {default}: a rerun gives the same "
+                    "answer; a nightly run can pass a new N for new passes)"
+                ),
+                "addon": _USE,
+            },
+        ),
+        Option(
             "alpha",
             "--alpha",
             "alpha",
@@ -613,13 +648,13 @@ def default(dest: str, place: str):
     return OPTIONS[dest].default_for(place)
 
 
-def argparse_type(option: Option, flag: str | None = None) -> Callable[[str], Any]:
+def argparse_type(option: Option, flag: str | None = None, auto: bool = False) -> Callable[[str], Any]:
     """The option's check as an argparse ``type`` (its error as argparse's, which names the flag); ``off`` is
-    None where the option has `Option.off`."""
+    None where the option has `Option.off`, ``auto`` where the place takes it (`auto`)."""
     flag = flag or option.flag
 
     def convert(value: str):
-        if option.off and value.strip().lower() == "off":
+        if option.off and value.strip().lower() == "off" or auto and value.strip().lower() == "auto":
             return None
         try:
             return option.convert(flag, value)
@@ -648,8 +683,9 @@ def add_options(parser, command: str, dests: Iterable[str], side: str = "referen
             what = option.help.split(",")[0].split(" (")[0]
             help_text = use.test_help or f"the test side's {what} (default: the reference's)"
             value = shown = () if option.many else None
+        auto = use.auto and side == "reference"
         if "{default}" in help_text:
-            help_text = help_text.format(default=option.show(shown))
+            help_text = help_text.format(default="auto" if auto and shown is None else option.show(shown))
         elif shown not in (None, [], ()) and not use.required:
             help_text += f" (default {option.show(shown)})"
         kwargs: dict[str, Any] = {"dest": dest_name, "help": help_text.replace("%", "%%")}
@@ -661,7 +697,7 @@ def add_options(parser, command: str, dests: Iterable[str], side: str = "referen
         elif option.kind == "choice" and side == "reference":
             kwargs["choices"] = option.choices
         else:
-            kwargs["type"] = argparse_type(option, flag)
+            kwargs["type"] = argparse_type(option, flag, auto)
         if option.many:
             kwargs |= {"action": "append", "default": []}
         elif use.required:

@@ -92,9 +92,21 @@ class Finished:
     passes: int
 
 
-Event = Started | PassDone | Warned | Failed | Saved | Looked | Finished
+@dataclass(frozen=True)
+class Probed:
+    """What a scene asks of the passes (``render --probe``): its own samples per render, and its settings that act
+    only above some samples (`batch.jobs.samples.SceneSamples`)."""
 
-EVENT_TYPES: dict[str, type] = {cls.name: cls for cls in (Started, PassDone, Warned, Failed, Saved, Looked, Finished)}
+    name: ClassVar[str] = "scene"
+    samples: int
+    settings: dict
+
+
+Event = Started | PassDone | Warned | Failed | Saved | Looked | Finished | Probed
+
+EVENT_TYPES: dict[str, type] = {
+    cls.name: cls for cls in (Started, PassDone, Warned, Failed, Saved, Looked, Finished, Probed)
+}
 
 _FIELD_TYPES = {
     "int": (int,),
@@ -102,6 +114,7 @@ _FIELD_TYPES = {
     "float": (int, float),
     "float | None": (int, float, type(None)),
     "str | None": (str, type(None)),
+    "dict": (dict,),
 }
 
 

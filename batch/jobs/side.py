@@ -15,6 +15,7 @@ Nothing here imports bpy or scipy.
 from __future__ import annotations
 
 import os
+import subprocess
 import time
 from pathlib import Path
 
@@ -24,6 +25,7 @@ from . import protocol
 from .job import RenderJob
 from .launch import JobProcess, blender_version, bpy_version, job_command, pass_limit
 from .protocol import ChunkRequest
+from .samples import SceneSamples
 
 #: Seconds to wait for a render process to end once its requests are closed.
 FINISH_WAIT = 60.0
@@ -93,6 +95,37 @@ class Side:
         self._relay()
         if code != 0:
             self._failed(code)
+
+    # -- what the scene asks of the passes -------------------------------------------------------------------
+
+    def start_probe(self) -> None:
+        """Start a process of the side's build that opens its scene and reads what it asks of the passes, without
+        rendering (``render --probe``); `probed` waits for the answer."""
+        if self.job.blender:
+            blender_version(self.job.blender)
+        if self.job.python:
+            bpy_version(self.job.python)
+        self.process = JobProcess(job_command(self.job, base_env=self.env, probe=True))
+
+    def probed(self) -> SceneSamples:
+        """The scene's own samples and sample-dependent settings (`batch.jobs.samples`), once the probe ends;
+        raises as a render does when it can't open the scene."""
+        try:
+            code = self.process.wait(START_TIMEOUT)
+        except subprocess.TimeoutExpired:
+            self.process.stop(HUNG_WAIT)
+            raise RendererFailed(self._named(f"{self._who} did not open the scene in {START_TIMEOUT:g} s")) from None
+        found = None
+        for event in self.process.drain():
+            if isinstance(event, protocol.Probed):
+                found = SceneSamples(event.samples, event.settings)
+            elif isinstance(event, protocol.Warned):
+                self._warn(event.message)
+        if code == 0 and found is None:
+            raise BatchError(self._named(f"{self._who} exited without reading the scene"))
+        if code != 0:
+            self._failed(code)
+        return found
 
     # -- passes ----------------------------------------------------------------------------------------------
 
@@ -208,6 +241,19 @@ class Side:
             raise KeyboardInterrupt
         whose = f"the {self.name} side's render" if self.name else "the render"
         raise RendererFailed(f"{whose} failed: {who} exited with code {code}: {reason}")
+
+
+def probe_scenes(jobs: list[tuple[str | None, RenderJob]]) -> list[SceneSamples]:
+    """What each job's scene asks of the passes (`Side.probed`), read by processes of their builds at once; each
+    is (a side's name for errors, its job)."""
+    sides = [Side(name, job) for name, job in jobs]
+    try:
+        for side in sides:
+            side.start_probe()
+        return [side.probed() for side in sides]
+    finally:
+        for side in sides:
+            side.stop()
 
 
 def run_job(job: RenderJob, progress, name: str | None = None) -> None:

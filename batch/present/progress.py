@@ -103,6 +103,9 @@ class Progress:
                 return f"{label}: saved {passes} passes in {out}"
             case protocol.Finished(out=out, passes=passes):
                 return f"{label}: {passes} passes in {out}"
+            case protocol.Probed(samples=samples, settings=settings):
+                shown = ", ".join(f"{k.removeprefix('cycles.')} {v}" for k, v in sorted(settings.items()))
+                return f"{label}: the scene renders {samples} samples; {shown or 'no settings read'}"
         raise TypeError(f"not a progress event: {event!r}")
 
     def start(self, done: int, out: str) -> None:

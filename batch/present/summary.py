@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from .._siblings import welch_core as wc
+from ..jobs import samples
 from ..jobs.seeds import format_seeds
 from . import fmt, words
 
@@ -61,6 +62,8 @@ def summarize(
     names = side_names(ref.info, test.info, ref_name, test_name)
     image, noise = differences(ref.info, test.info)
     fixed = fixed_notes(ref.info, test.info)
+    sampled = sample_notes(ref.info, test.info, outcome.identical)
+    hidden = fixed[1] + sampled[1]
     pixels = c.pixel_use.to_json() if c.pixel_use is not None else None
     summary = {
         "verdict": data["verdict"],
@@ -91,18 +94,18 @@ def summarize(
         },
         "tile_channels": c.reason_counts,
         "top_tiles": top_tiles(c, outcome),
-        "notes": notes(c, outcome) + fixed[0],
+        "notes": notes(c, outcome) + fixed[0] + sampled[0] + check_notes(check),
         "reference": {"name": names[0], "n": ref.n, "seeds": format_seeds(ref.seeds), "info": ref.info.to_json()},
         "test_run": {"name": names[1], "n": test.n, "seeds": format_seeds(test.seeds), "info": test.info.to_json()},
         "differences": image,
         "noise_differences": noise,
-        "hidden_differences": fixed[1],
+        "hidden_differences": hidden,
         "reference_selftest": selftest_summary(selftest),
         "dropped_pixels": ref.dropped_pixels,
         "check": check,
     }
     summary["warnings"] = warnings(summary)
-    summary["next_step"] = words.next_step(data, check=check is not None, hidden=fixed[1])
+    summary["next_step"] = words.next_step(data, check=check is not None, hidden=hidden)
     return summary
 
 
@@ -355,6 +358,73 @@ def fixed_notes(ref: wc.RunInfo, test: wc.RunInfo) -> tuple[list[str], list[str]
     return out, hidden
 
 
+def _file_samples(info: wc.RunInfo) -> int | None:
+    """The samples per render of the scene file a run rendered (None: a built-in scene, or not recorded)."""
+    if info.scene_id.startswith("builtin:"):
+        return None
+    own = info.fixed.get("cycles.samples")
+    return int(own[0]) if isinstance(own, list | tuple) and isinstance(own[0], int) else None
+
+
+def _per_pass(spp: int) -> str:
+    return f"{spp} sample{'s' if spp != 1 else ''} per pass"
+
+
+def sample_notes(ref: wc.RunInfo, test: wc.RunInfo, identical: bool = False) -> tuple[list[str], list[str]]:
+    """Where a verdict holds at its passes' samples only (`batch.jobs.samples`), as notes, and the differences
+    the passes cannot show (``hidden``, as `fixed_notes`'): a setting the sides differ in that acts only from more
+    samples per render than the passes have (or that left every pass as it was), and one both scene files have on
+    that their own renders reach but the passes do not."""
+    if not ref.settings or not test.settings:  # another renderer's passes, or an ingested run
+        return [], []
+    files = max((n for n in (_file_samples(ref), _file_samples(test)) if n is not None), default=None)
+    spp = min(ref.spp, test.spp)
+
+    def advice(fewest: int) -> str:
+        need = max(fewest, files or 0, 2 * spp if fewest <= spp else 0)
+        if files is not None and need == files:
+            return f" (the scene files render {files}: --spp {files} renders the passes as they do)"
+        return (
+            f"; --spp {need} or more renders it"
+            if fewest > spp
+            else f"; more samples per pass (--spp {need} or more) may show it"
+        )
+
+    out, hidden = [], []
+    for d in samples.differing(ref.settings, test.settings):
+        shown = [a.value if (a := samples.acting(info.settings).get(d.path)) and a.fewest <= info.spp else None
+                 for info in (ref, test)]  # fmt: skip
+        if shown[0] != shown[1] and not identical:
+            continue  # it acts in the passes: the test sees it
+        values = tuple(_setting_value(v) for v in d.values)
+        hidden.append(words.sample_hidden(d.name, values, d.fewest, spp))
+        why = (f"which acts only from {d.fewest} samples per render" if d.fewest > spp else
+               f"which left every pass as it was at these samples (it acts from {d.fewest} at best)")  # fmt: skip
+        out.append(f"the verdict holds at {_per_pass(spp)} only: the sides differ in {d.name} ({values[0]} → "
+                   f"{values[1]}), {why}{advice(d.fewest)}")  # fmt: skip
+    if files is not None:
+        both = samples.acting(ref.settings)
+        for path, mine in samples.acting(test.settings).items():
+            theirs = both.get(path)
+            if theirs is not None and theirs.value == mine.value and spp < mine.fewest <= files:
+                out.append(f"the verdict holds at {_per_pass(spp)} only: both scenes have {mine.name} "
+                           f"{_setting_value(mine.value)}, which acts only from {mine.fewest} samples per render"
+                           f"{advice(mine.fewest)}")  # fmt: skip
+    return out, hidden
+
+
+def check_notes(check: dict[str, Any] | None) -> list[str]:
+    """What a check's own choices add to the notes: the samples ``--spp auto`` chose, where more than 1."""
+    auto = (check or {}).get("auto_samples")
+    if not auto:
+        return []
+    names = "; ".join(f"{d['name']} ({' → '.join(_setting_value(v) for v in d['values'])}, from {d['fewest']})"
+                      for d in auto["differing"])  # fmt: skip
+    source = "the scene files' own" if auto["files"] == auto["spp"] else "the fewest at which that acts"
+    return [f"--spp auto: {_per_pass(auto['spp'])}, {source}, since the sides differ in what acts only from some "
+            f"samples per render: {names}"]  # fmt: skip
+
+
 def selftest_summary(check: wc.Comparison | None) -> dict[str, Any] | None:
     """report.json's record of the reference tested against itself (`welch_core.selftest`)."""
     if check is None:
@@ -396,6 +466,8 @@ def check_record(
         "max_seconds": job.max_seconds,
         "tolerance": job.tolerance,
         "paired": job.paired,
+        "seed_offset": job.seed_offset,
+        "auto_samples": job.auto_samples,
         "spending": "pocock",
         "early_share": share,
         "early_passes": passes if share else None,

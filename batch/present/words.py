@@ -316,12 +316,29 @@ def attribution(where: str | None, components: tuple[str, ...] = ()) -> str | No
     return None
 
 
+#: What marks a `hidden` difference of a setting that acts only above some samples per render (`sample_hidden`).
+_ACTING = ", acting from "
+
+
+def sample_hidden(name: str, values: tuple[str, str], fewest: int, spp: int) -> str:
+    """A difference the passes cannot show: a setting that acts only from `fewest` samples per render, with passes
+    of `spp` (`next_step`'s `hidden`; `batch.present.summary.sample_notes`)."""
+    return f"{name}: {values[0]} → {values[1]}{_ACTING}{fewest} samples per render, {spp} in the passes"
+
+
 def next_step(outcome: dict[str, Any], check: bool = False, hidden: list[str] = ()) -> str:
-    """What to do with this verdict, in a sentence or two; `hidden`: the settings in which the scene files differ
-    but the passes do not (`batch.present.summary.fixed_notes`)."""
+    """What to do with this verdict, in a sentence or two; `hidden`: the settings in which the two sides differ
+    but the passes do not: a setting the passes replace on both sides (`batch.present.summary.fixed_notes`), or one
+    that acts only from more samples per render than the passes have (`sample_hidden`)."""
     reason = outcome["reason"]
     if hidden and reason in ("bounded", "identical", "identical_too_few"):
         names = ", ".join(dict.fromkeys(h.split(":")[0] for h in hidden))
+        if any(_ACTING in h for h in hidden):
+            return (
+                f"The passes agree, but they have too few samples to show {names} (settings that act only above "
+                "some samples per render; see the notes): run the same command with --spp at the scene files' "
+                "samples, or at least those the notes give, and another --out."
+            )
         return (
             f"The passes agree, but the scene files differ in what the passes replace ({names}), a difference not "
             "tested: compare samples, sampling patterns or devices directly (--test-spp, --test-sampling-pattern, "

@@ -17,4 +17,6 @@ docs/findings/.
   D, broken sampling settings and power, against the tile test.
 - ``blue_noise_volume``: Cycles' blue-noise pattern against Tabulated Sobol on a cube of fog, the measurement
   behind docs/findings/blue_noise_volume.md (a finding about a renderer, not a benchmark of this tool).
+- ``sample_dependent``: the sample count per render from which each Cycles setting of `batch.jobs.samples` acts,
+  the measurement behind docs/findings/sample_dependent.md.
 """

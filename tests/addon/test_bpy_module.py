@@ -14,6 +14,7 @@ bpy = pytest.importorskip("bpy")
 
 import blender_addon  # noqa: E402
 import welch_core  # noqa: E402
+from batch.decide.check import UNPAIRED_SEEDS  # noqa: E402
 from blender_addon import checks, results, runner, session, ui  # noqa: E402
 from blender_addon.state import RunFolder  # noqa: E402
 from blender_addon.state import current as state  # noqa: E402
@@ -197,19 +198,40 @@ def test_the_panel_asks_for_the_check_the_command_line_describes(scene, tmp_path
 
     settings = scene.welch_bias
     declared = CheckRequest(out="")
-    assert (settings.spp, settings.tile, settings.device) == (declared.spp, declared.tile, declared.device)
+    assert (settings.spp or None, settings.tile, settings.device) == (declared.spp, declared.tile, declared.device)
+    assert settings.seed_offset == declared.seed_offset
     assert (session.alpha_of(settings), settings.tolerance / 100) == (declared.alpha, pytest.approx(declared.tolerance))
     blend = tmp_path / "scene.blend"
     blend.write_bytes(b"BLENDER")  # the request checks that the file exists; nothing renders here
     bpy.ops.welch_bias.override_add(text="cycles.blur_glossy=0")
     settings.max_passes, settings.spp, settings.tolerance, settings.paired = 64, 2, 0.5, False
-    settings.test_build = "/opt/blender-5.2/blender"
+    settings.test_build, settings.seed_offset = "/opt/blender-5.2/blender", 7
     request = session.check_request(settings, scene, str(blend), tmp_path / "run", False, "/usr/bin/blender")
     argv = ["check", str(blend), "--blend-scene", scene.name, "--out", str(tmp_path / "run"), "--spp", "2",
             "--tile", str(settings.tile), "--device", "CPU", "--alpha", "0.01", "--max-passes", "64",
             "--tolerance", "0.5%", "--set", "cycles.blur_glossy=0", "--blender", "/usr/bin/blender",
-            "--test-blender", "/opt/blender-5.2/blender", "--unpaired"]  # fmt: skip
-    assert check_job(request) == check_job_from_args(build_parser().parse_args(argv))
+            "--test-blender", "/opt/blender-5.2/blender", "--unpaired", "--seed-offset", "7"]  # fmt: skip
+    job = check_job(request)
+    assert job == check_job_from_args(build_parser().parse_args(argv))
+    assert (job.seed_offset, job.reference.seeds[0], job.test.seeds[0]) == (7, 7, UNPAIRED_SEEDS + 7)
+
+
+def test_the_panels_auto_samples_read_its_own_scenes(scene, tmp_path):
+    """Samples per Pass 0 is --spp auto: the sides' scenes are read from this file, not by a render process; an
+    override of path guiding renders the scene's own samples."""
+    from batch.decide.check import check_job
+
+    settings = scene.welch_bias
+    blend = tmp_path / "scene.blend"
+    blend.write_bytes(b"BLENDER")
+    scene.cycles.samples = 24
+    bpy.ops.welch_bias.override_add(text="cycles.use_guiding=True")
+    assert settings.spp == 0
+    request = session.check_request(settings, scene, str(blend), tmp_path / "run", False)
+    assert request.spp is None
+    job = check_job(request, probe=session.scene_samples)
+    assert (job.reference.spp, job.test.spp) == (24, 24)
+    assert job.auto_samples["differing"] == [{"name": "use_guiding", "values": [False, True], "fewest": 2}]
 
 
 def test_checks_of_the_setup(scene, tmp_path):

@@ -11,7 +11,7 @@ from batch.jobs.options import OPTIONS  # noqa: E402
 pytestmark = pytest.mark.usefixtures("addon")  # registered for the module (tests/addon/conftest.py)
 
 #: The panel's property of each option it sets, and the factor it shows the value with (a tolerance in percent).
-PROPERTIES = {"spp": 1, "tile": 1, "max_passes": 1, "tolerance": 100.0, "alpha": 1, "device": 1}
+PROPERTIES = {"spp": 1, "tile": 1, "max_passes": 1, "tolerance": 100.0, "alpha": 1, "device": 1, "seed_offset": 1}
 
 
 def prop(name: str):
@@ -29,10 +29,13 @@ def test_a_property_has_the_declared_default_and_limits(dest, scale):
         assert found.default == option.default_for("addon")
         assert {item.identifier for item in found.enum_items} <= set(option.choices)
         return
-    assert found.default == pytest.approx(option.default_for("addon") * scale, rel=1e-6)
-    if option.open_low:  # a property includes its limits: it takes one inside the declared one (or 0: off)
+    if option.use("addon").auto:  # 0 is auto, the default: the command resolves it
+        assert (found.default, found.hard_min) == (0, 0) and option.default_for("addon") is None
+    elif option.open_low:  # a property includes its limits: it takes one inside the declared one (or 0: off)
+        assert found.default == pytest.approx(option.default_for("addon") * scale, rel=1e-6)
         assert found.hard_min == 0.0 if option.off else option.admits(found.hard_min / scale)
     else:
+        assert found.default == pytest.approx(option.default_for("addon") * scale, rel=1e-6)
         assert found.hard_min == option.low * scale
     if option.open_high:
         assert found.hard_max <= option.high * scale and option.admits(found.hard_max / scale * (1 - 1e-6))

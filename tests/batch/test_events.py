@@ -24,6 +24,7 @@ EVERY_EVENT = [
     protocol.Looked(passes=9, p_value=0.0049, threshold=1.7e-06, ruled_out=0.0076, verdict=None, left=28, seconds=0.7),
     protocol.Looked(passes=11, p_value=1e-9, threshold=1.7e-06, ruled_out=None, verdict="biased", left=27, seconds=0.8),
     protocol.Finished(out="runs/ref.npz", passes=8),
+    protocol.Probed(samples=4096, settings={"cycles.use_guiding": True, "cycles.sampling_pattern": "BLUE_NOISE"}),
 ]
 
 

@@ -6,14 +6,28 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-from batch.blender.lint import BIASED, INFO, NOT_INDEPENDENT, RULES, SEVERITIES, Finding, Rule, lint_scene  # noqa: E402
+from batch.blender.lint import (  # noqa: E402
+    BIASED,
+    INFO,
+    NOT_INDEPENDENT,
+    RULES,
+    SAMPLES,
+    SEVERITIES,
+    Finding,
+    Rule,
+    lint_scene,
+    sample_findings,
+)
 from batch.blender.scenes import SCENES, build_scene  # noqa: E402
 from batch.jobs.overrides import apply_overrides  # noqa: E402
 
 
 @pytest.fixture
 def factory():
-    """bpy is one global state per process: every test starts from an empty file."""
+    """bpy is one global state per process: every test starts from an empty file and leaves one (a scene left
+    built would shadow the data-blocks of the next module's scenes by name)."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    yield
     bpy.ops.wm.read_factory_settings(use_empty=True)
 
 
@@ -89,3 +103,36 @@ def test_rules_are_well_formed_and_missing_properties_are_skipped(factory):
 def test_finding_format():
     finding = Finding("cycles.blur_glossy", 1.0, 0.0, BIASED, "blurs")
     assert finding.format() == "biased          cycles.blur_glossy = 1.0 (unbiased: 0.0): blurs"
+
+
+def test_settings_that_act_only_above_some_samples_are_named_where_the_scene_reaches_them(factory):
+    """Blender's factory scene renders 4096 samples: its Tabulated Sobol table and adaptive sampling act there, not
+    in a pass of 1 sample; path guiding and blue noise from 2 samples."""
+    scene = bpy.context.scene
+    assert [(f.path, f.value, f.severity) for f in sample_findings(scene)] == [
+        ("cycles.sampling_pattern", "TABULATED_SOBOL", SAMPLES),
+        ("cycles.use_adaptive_sampling", True, SAMPLES),
+    ]
+    scene.cycles.use_guiding, scene.cycles.sampling_pattern = True, "BLUE_NOISE"
+    found = {f.path: f for f in sample_findings(scene)}
+    assert list(found) == ["cycles.use_guiding", "cycles.sampling_pattern", "cycles.use_adaptive_sampling"]
+    assert (
+        found["cycles.use_guiding"]
+        .format()
+        .startswith(
+            "samples         cycles.use_guiding = True: acts only from 2 samples per render and the scene renders "
+            "4096: passes of fewer samples (check --spp) do not show it; path guiding"
+        )
+    )
+    scene.cycles.samples = 1  # its own renders do not reach them either
+    assert [f.path for f in sample_findings(scene)] == []
+
+
+@pytest.mark.parametrize("name", ["corner", "volume"])
+def test_builtin_scenes_ask_nothing_of_the_samples_and_are_known_without_reading_them(factory, name):
+    from batch.jobs.samples import BUILTIN, acting, scene_samples
+
+    scene = build_scene(name)
+    assert sample_findings(scene) == []
+    read = scene_samples(scene)
+    assert read.samples == 1 and acting(read.settings) == acting(BUILTIN.settings)

@@ -95,7 +95,7 @@ def test_a_check_report_lists_its_looks(tmp_path):
               "seconds": 0.1}]  # fmt: skip
 
     class Job:
-        max_seconds, tolerance, paired = None, 0.01, False
+        max_seconds, tolerance, paired, seed_offset, auto_samples = None, 0.01, False, 0, None
 
     check = summary.check_record(Job, looks, 32, look)
     s = summary.summarize(c, ref, test, outcome=look.outcome, check=check)

@@ -122,8 +122,41 @@ def test_a_test_side_setting_goes_to_the_test_side_only(tmp_path):
     from batch.cli.commands import build_parser
     from batch.decide.check import check_job_from_args
 
-    args = build_parser().parse_args(["check", "--scene", "corner", "--test-spp", "4", "--test-sampling-pattern",
-                                      "BLUE_NOISE", "--out", str(tmp_path / "c")])  # fmt: skip
+    argv = ["check", "--scene", "corner", "--spp", "1", "--test-spp", "4", "--test-sampling-pattern", "BLUE_NOISE",
+            "--out", str(tmp_path / "c")]  # fmt: skip
+    args = build_parser().parse_args(argv)
     job = check_job_from_args(args)
     assert (job.reference.spp, job.reference.sampling_pattern) == (1, None)
     assert (job.test.spp, job.test.sampling_pattern) == (4, "BLUE_NOISE") and job.paired
+
+
+@pytest.mark.slow
+def test_guiding_asked_for_at_the_default_samples_renders_the_files_own(tmp_path):
+    """--set cycles.use_guiding=True without --spp: the file is read once and the passes render its 16 samples, at
+    which guiding acts (at 32x32 from 6), not 1, at which it never does."""
+    room = scene_file(tmp_path, "room.blend", 16, "TABULATED_SOBOL")
+    done = check(room, "--resolution", 32, 32, "--tile", 8, "--set", "cycles.use_guiding=True", "--max-passes", 8,
+                 "--tolerance", "off", "--out", tmp_path / "chk")  # fmt: skip
+    assert done.returncode in (0, 1, 3), done.stdout[-2000:] + done.stderr[-2000:]
+    for side in ("reference", "test"):
+        assert wc.load_stats(tmp_path / "chk" / f"{side}.npz", pixels=False).info.spp == 16
+    report = json.loads((tmp_path / "chk" / "report.json").read_text())
+    assert report["outcome"]["reason"] not in ("identical", "identical_too_few") and report["hidden_differences"] == []
+    assert "note: --spp auto: 16 samples per pass, the scene files' own, since the sides differ in what acts only " \
+           "from some samples per render: use_guiding (off → on, from 2)" in done.stdout  # fmt: skip
+
+
+@pytest.mark.slow
+def test_guiding_that_left_every_pass_as_it_was_is_never_nothing_to_do(tmp_path):
+    """A built-in scene at 32x32: --spp auto gives guiding the 2 samples it needs at best, but at this size it acts
+    only from 6, so every pass is as it was; the verdict holds at 2 samples per pass only and says so."""
+    done = check("--scene", "corner", "--resolution", 32, 32, "--tile", 8, "--set", "cycles.use_guiding=True",
+                 "--max-passes", 8, "--out", tmp_path / "chk")  # fmt: skip
+    assert done.returncode == 3, done.stdout[-2000:] + done.stderr[-2000:]
+    report = json.loads((tmp_path / "chk" / "report.json").read_text())
+    assert report["outcome"]["reason"] == "identical_too_few"
+    assert report["hidden_differences"] == ["use_guiding: off → on, acting from 2 samples per render, 2 in the passes"]
+    assert "Nothing to do" not in report["next_step"] and "--spp" in report["next_step"]
+    assert "note: the verdict holds at 2 samples per pass only: the sides differ in use_guiding (off → on), which " \
+           "left every pass as it was at these samples" in done.stdout  # fmt: skip
+    assert "next: The passes agree, but they have too few samples to show use_guiding" in done.stdout
