@@ -284,7 +284,7 @@ def planned_fractions(fractions, plan: SequentialPlan, passes: int, budget: int,
 
 
 def promise(scales, final_levels, fraction: float) -> float:
-    """The largest conditional power, over the tested tile-channels of every scale, to cross the boundary of the
+    """The largest conditional power, over the tile-channels of every scale, to cross the boundary of the
     budget's last look (its nominal level in `final_levels`, per scale) if the tile-channel held the bias the
     budget detects there with `DETECTION_POWER` (its minimum detectable bias: drift c + z_beta at the end), given
     its z now at information `fraction` of the budget's. On the Brownian scale B(t) = z sqrt(t) the rest of the
@@ -297,7 +297,9 @@ def promise(scales, final_levels, fraction: float) -> float:
     z_beta = float(special.ndtri(DETECTION_POWER))
     best = 0.0
     for scale, level in zip(scales, final_levels, strict=True):
-        tested = scale.used[..., None] & (scale.reasons == Reason.VALID)
+        # every tile-channel with a p-value, trusted or not: one not trusted now (a caustic's few passes) may be
+        # trusted and cross later, and its p is the best guide to how far it is
+        tested = scale.reasons == Reason.VALID
         if not tested.any() or not level > 0:
             continue
         p = max(float(np.min(scale.pvalues[tested])), 1e-300)
@@ -351,7 +353,8 @@ def sequential_look(
     ahead = planned_fractions(fractions, plan, n, budget, fixed)
     claimable = information_fraction(identical_passes(plan.alpha), plan.max_passes, fixed)
     equivalence_level = _equivalence_level(fractions, claimable, plan)
-    planning = _equivalence_level(ahead, claimable, plan)
+    # a budget too short for any claim plans as one look at the end would
+    planning = _equivalence_level(ahead, claimable, plan) or min(2 * plan.alpha, 0.5)
     significant = []
     crossed, best = 0, (0.0, 1.0, 1.0)  # (log ratio of p to its level, p, level) of the strongest hypothesis
     for scale, level in zip(scales, scale_levels, strict=True):

@@ -12,8 +12,12 @@ from typing import Any
 from . import fmt
 
 
-def where(d: dict[str, Any]) -> str:
-    """'R of the 16x16 tile at x 32, y 48' (its true size at a partial edge)."""
+def where(d: dict[str, Any], outcome: dict[str, Any] | None = None) -> str:
+    """'R of the 16x16 tile at x 32, y 48' (its true size at a partial edge), or 'R of the whole image' where
+    `outcome` says that one tile of that size covers it."""
+    scale = scale_of(outcome, d["tile"]) if outcome is not None else None
+    if scale is not None and scale["tiles"] == 1:
+        return f"{d['channel']} of the whole image"
     size = (
         f"{d['tile']}x{d['tile']}"
         if (d["width"], d["height"]) == (d["tile"], d["tile"])
@@ -93,8 +97,8 @@ def deterministic(count: int, test: str) -> str:
 
 def _biased_claim(outcome: dict[str, Any], text: str, whole: str | None) -> list[str]:
     """A `biased` verdict's parts: the whole image first where its interval agrees (excludes 0), else the tile that
-    decided first and the whole image said to be not significant on its own; an interval too wide to state said
-    so."""
+    decided first and the whole image said to be not significant on its own where its interval holds 0; an
+    interval too wide to state said so."""
     top, image = outcome["most_significant"], outcome.get("whole_image") or {}
     agrees = image.get("low") is not None and (image["low"] > 0 or image["high"] < 0)
     decided = None
@@ -104,10 +108,12 @@ def _biased_claim(outcome: dict[str, Any], text: str, whole: str | None) -> list
             if top["low"] is not None
             else f"{fmt.percent(top['estimate'])} (its interval over every tile needs more passes)"
         )
-        decided = f"{interval} in {where(top)} (p {fmt.p_value(top['p_value'])})"
+        decided = f"{interval} in {where(top, outcome)} (p {fmt.p_value(top['p_value'])})"
     if agrees or decided is None:
         return [f"{text}: {whole}" if whole else text] + ([f"most significant {decided}"] if decided else [])
-    return [f"{text}: {decided}"] + ([f"{whole}, not significant on its own"] if whole else [])
+    if whole and image.get("low") is not None:  # its interval is known and holds 0: it alone shows nothing
+        whole += ", not significant on its own"
+    return [f"{text}: {decided}"] + ([whole] if whole else [])
 
 
 def sentence(outcome: dict[str, Any]) -> str:
@@ -353,7 +359,7 @@ def next_step(outcome: dict[str, Any], check: bool = False, hidden: list[str] = 
     )
     if reason in ("significant", "spread", "deterministic"):
         top = outcome["most_significant"]
-        located = f" The most significant difference is in {where(top)}." if top else ""
+        located = f" The most significant difference is in {where(top, outcome)}." if top else ""
         return (
             "The two do not converge to the same image." + located + " Look at the recorded differences and the "
             "tiles outlined in the map; a difference you expected (a setting changed on purpose) confirms the test "
@@ -379,7 +385,8 @@ def next_step(outcome: dict[str, Any], check: bool = False, hidden: list[str] = 
     if reason in ("futile", "unbounded", "beyond"):
         claim = claim_scale(outcome)
         coarser = [x for x in outcome["scales"] if x["tile"] > claim["tile"] and x["projected"] is not None]
-        if claim["projected"] is not None and claim["passes_needed"] is not None:
+        n = min(outcome["n_ref"], outcome["n_test"])
+        if claim["projected"] is not None:
             need = claim["projected"]
             grow = (
                 f"{every_tile(claim)} within ±{_tolerance(outcome)} would need about {need} passes a side if the sides "
@@ -387,11 +394,8 @@ def next_step(outcome: dict[str, Any], check: bool = False, hidden: list[str] = 
                 + (f"the same check with --max-passes {need} and --resume" if check
                    else f"render about {need} passes a side into both runs (--resume, more seeds), then compare again")
             )  # fmt: skip
-        elif claim["projected"] is not None:
-            grow = (
-                f"an estimate at or beyond the tolerance keeps {every_tile(claim)} from being bounded: look at the "
-                "tiles not bounded in the map"
-            )
+            if claim["passes_needed"] is None and n >= outcome["identical_needed"]:
+                grow += " (an estimate is at or beyond the tolerance now: look at the tiles not bounded in the map)"
         else:
             grow = (
                 f"more passes alone can't bound {every_tile(claim)} (tiles whose samples are not normal, or a "

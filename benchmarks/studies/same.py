@@ -2,7 +2,8 @@
 speaks of, whether that claim is ever wrong under a local bias, what its futility stop costs, and `compare` at a
 few passes on a caustic.
 
-    python -m benchmarks.studies.same            # pools in benchmarks/cache/ -> docs/benchmarks/same.{csv,png}
+    python -m benchmarks.studies.same            # pools in benchmarks/cache/ -> docs/benchmarks/same_*.csv, same.png
+    python -m benchmarks.studies.same local futility    # some parts only (the local one reads same_aa.csv)
     python -m benchmarks.studies.same --quick --out /tmp/same    # small pools and few runs: the pipeline
 
 Every run replays `check` with its defaults on passes rendered by the tool's own code (`welch_core.sequential_look`
@@ -16,9 +17,9 @@ at each look of `look_schedule`, the claim's size kept from its sizing look as `
   image, other random numbers), each pixel's differences folded as `check` folds them; budget 256, from a random
   half of 512 seeds.
 * ``local``: `equivalent` where a tile is off: the test side's passes of an A/A split scaled by 1 + `LOCAL_BIAS`
-  (1.2 tolerances) in one tile of the size the scene's A/A runs claim (its brightest), so that a claim at that size
-  or finer is wrong and a coarser one may be right; whether a claim is wrong is read off the pool's mean image and
-  the known factor, at the size claimed.
+  (1.2 tolerances) in one tile of the size the scene's A/A runs claim (its darkest lit tile, whose noise hides a
+  bias the longest), so that a claim at that size or finer is wrong and a coarser one may be right; whether a
+  claim is wrong is read off the pool's mean image and the known factor, at the size claimed.
 * ``futility``: real biases that `check` finds late in its budget (`POWER`), with and without the futility stop on
   the same pass orders, paired and unpaired: the power the stop gives up.
 * ``fixed``: `compare` at 2 v 2, 3 v 3 and 4 v 4 passes of the glass caustic (64x64), unbiased splits: `biased`.
@@ -194,14 +195,13 @@ def local(b: dict, cache: Path, sizes: dict[str, int]) -> list[dict]:
 
 
 def _local_factor(mean: np.ndarray, size: int):
-    """1 everywhere but 1 + LOCAL_BIAS tolerances in the brightest full tile of `size`; and that tile's corner."""
+    """1 everywhere but 1 + LOCAL_BIAS tolerances in the darkest full tile of `size` whose darkest channel has at
+    least a tenth of the brightest tile's light (the noisiest a claim still speaks for); and that tile's corner."""
     h, w = mean.shape[:2]
-    best, corner = -1.0, (0, 0)
-    for y in range(0, h - size + 1, size):
-        for x in range(0, w - size + 1, size):
-            level = float(mean[y : y + size, x : x + size].min(axis=(0, 1)).sum())
-            if level > best:
-                best, corner = level, (y, x)
+    tiles = {(y, x): float(mean[y : y + size, x : x + size].mean(axis=(0, 1)).min())
+             for y in range(0, h - size + 1, size) for x in range(0, w - size + 1, size)}  # fmt: skip
+    lit = {corner: level for corner, level in tiles.items() if level >= 0.1 * max(tiles.values())}
+    corner = min(lit, key=lit.get)
     factor = np.ones(mean.shape)
     y, x = corner
     factor[y : y + size, x : x + size] = 1.0 + LOCAL_BIAS * TOLERANCE
@@ -289,21 +289,53 @@ def chart(rows: list[dict], out: Path) -> str:
     return save(fig, out / "same.png")
 
 
+PARTS = ("aa", "paired_aa", "local", "futility", "fixed")
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = study_arguments("same", __doc__, "small pools and few runs (checks the pipeline)", argv)
+    import sys
+
+    argv = sys.argv[1:] if argv is None else argv
+    parts = [a for a in argv if a in PARTS] or list(PARTS)
+    args = study_arguments("same", __doc__, "small pools and few runs (checks the pipeline)",
+                           [a for a in argv if a not in PARTS])  # fmt: skip
     b = QUICK if args.quick else FULL
     start = time.perf_counter()
-    rows, sizes = aa(b, args.cache)
-    rows += paired_aa(b, args.cache)
-    rows += local(b, args.cache, sizes)
-    rows += futility(b, args.cache)
-    rows += fixed(b, args.cache)
-    keys = list(dict.fromkeys(k for r in rows for k in r))
-    write_csv(args.out / "same.csv", [{k: r.get(k) for k in keys} for r in rows])
-    chart(rows, args.out)
-    summary(rows)
-    say(f"wrote {args.out / 'same.csv'} and same.png in {time.perf_counter() - start:.0f} s")
+    done = {}
+    if "aa" in parts:
+        done["aa"], sizes = aa(b, args.cache)
+    else:
+        sizes = _sizes(args.out / "same_aa.csv")
+    for part in parts:
+        if part == "paired_aa":
+            done[part] = paired_aa(b, args.cache)
+        elif part == "local":
+            done[part] = local(b, args.cache, sizes)
+        elif part == "futility":
+            done[part] = futility(b, args.cache)
+        elif part == "fixed":
+            done[part] = fixed(b, args.cache)
+    for part, rows in done.items():
+        if rows:
+            keys = list(dict.fromkeys(k for r in rows for k in r))
+            write_csv(args.out / f"same_{part}.csv", [{k: r.get(k) for k in keys} for r in rows])
+    if "aa" in done:
+        chart(done["aa"], args.out)
+    summary([r for rows in done.values() for r in rows])
+    say(f"wrote same_{{{','.join(done)}}}.csv in {args.out} in {time.perf_counter() - start:.0f} s")
     return 0
+
+
+def _sizes(path: Path) -> dict[str, int]:
+    """Each scene's most often claimed size, from an earlier A/A part's CSV."""
+    import csv
+
+    claimed: dict[str, list[int]] = {}
+    with open(path) as f:
+        for row in csv.DictReader(f):
+            if row["claim_tile"]:
+                claimed.setdefault(row["scene"], []).append(int(row["claim_tile"]))
+    return {scene: max(set(tiles), key=tiles.count) for scene, tiles in claimed.items()}
 
 
 def summary(rows: list[dict]) -> None:

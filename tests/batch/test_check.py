@@ -75,19 +75,29 @@ def test_a_planted_bias_stops_early_as_biased(tmp_path):
 
 
 @pytest.mark.slow
-def test_an_aa_check_ends_equivalent_without_choosing_n(tmp_path):
+def test_an_aa_check_ends_equivalent_at_the_size_its_budget_bounds_without_choosing_n(tmp_path):
+    """The default check of an unbiased pair sizes its claim for the budget (16x16 tiles would need more than its
+    512 passes here, 32x32 not), records the size, says what the finer one would need, and resumes to the same."""
     done = check(*SMALL, "--unpaired", "--out", tmp_path, expect=0)
-    assert done.stdout.startswith("verdict: equivalent within ±1.00 % in every 16x16 tile (a bias beyond ")
+    first = done.stdout.splitlines()[0]
+    assert first.startswith("verdict: equivalent within ±1.00 % in every 32x32 tile (a bias beyond "), first
+    assert "; 16x16 tiles would need about " in first and " passes a side; whole image " in first
     assert "\n  alpha 0.01, welch test, " in done.stdout
     state = json.loads((tmp_path / "check.json").read_text())
+    assert state["claim_tile"] == 32 and state["looks"][-1]["claim_tile"] == 32
     assert state["looks"][-1]["verdict"] == "equivalent" and state["looks"][-1]["passes"] < 512
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert report["outcome"]["target_tile"] == 32 and report["outcome"]["scales"][0]["projected"] > 512
+    again = check(*SMALL, "--unpaired", "--out", tmp_path, "--resume", expect=0)
+    assert again.stdout.splitlines()[0] == first
 
 
 @pytest.mark.slow
 def test_the_budget_ends_inconclusive_with_the_bias_it_rules_out(tmp_path):
     done = check(*SMALL, "--unpaired", "--tolerance", "0.01%", "--max-passes", 6, "--out", tmp_path, expect=3)
-    assert "verdict: inconclusive: not shown within ±0.01 % in every 16x16 tile" in done.stdout
-    assert "bias ruled out per tile size: 16: —, 32: —, 64: —" in done.stdout  # 6 passes bound nothing
+    assert "verdict: inconclusive: not shown within ±0.01 % in the whole image" in done.stdout  # nothing is reachable
+    assert "bias ruled out per tile size: 16: not bounded, 32: not bounded, 64: not bounded" in done.stdout
+    assert "would need about " in done.stdout and "—" not in done.stdout
     assert wc.load_stats(tmp_path / "reference.npz").n == 6
 
 
@@ -186,19 +196,20 @@ def test_a_check_started_before_the_early_design_resumes_without_it(tmp_path):
 
 
 @pytest.mark.slow
-def test_equivalent_out_of_reach_stops_early_names_what_the_budget_bounds_and_resumes_to_the_same(tmp_path):
-    """An A/A check whose 16x16 tiles no budget within reach bounds within 0.1 %: it stops `inconclusive` from an
-    eighth of its budget (not at the budget), names the tile sizes the budget can bound, answers the same when
+def test_neither_claim_in_reach_stops_early_says_why_and_resumes_to_the_same(tmp_path):
+    """An A/A check whose tolerance (0.01 %) no size reaches within its budget of 256: it stops `inconclusive`
+    once no tile-channel could reach `biased` by the budget with a 5 % chance even with the bias the budget
+    detects there (after half the budget, not at the end), says so with the projection, answers the same when
     resumed, refuses a resume with another design by naming the option, and with --no-futility renders it all."""
-    # The stop needs data that point nowhere (the family's smallest adjusted p above 0.5): a draw with one tile at
-    # p 1.5e-4, as 1 spp's seeds give here, goes on to the budget; 2 spp's stop at 34 passes.
-    common = (*SMALL, "--unpaired", "--spp", 2, "--tolerance", "0.1%", "--max-passes", 256)
+    common = (*SMALL, "--unpaired", "--spp", 2, "--tolerance", "0.01%", "--max-passes", 256)
     done = check(*common, "--out", tmp_path / "a", expect=3)
     state = json.loads((tmp_path / "a" / "check.json").read_text())
     last = state["looks"][-1]
-    assert last["reason"] == "futile" and 32 <= last["passes"] < 256, last
-    assert "verdict: inconclusive: stopped early, every 16x16 tile within ±0.10 % would take about" in done.stdout
-    assert "beyond the budget of 256" in done.stdout and "--equivalence-tile" in done.stdout
+    assert last["reason"] == "futile" and 128 <= last["passes"] < 256 and last["promise"] < 0.05, last
+    assert f"verdict: inconclusive: stopped early after {last['passes']} of 256 passes a side, neither claim" in (
+        done.stdout
+    )
+    assert "would need about " in done.stdout and "gave up at most 5 % of the power" in done.stdout
     again = check(*common, "--out", tmp_path / "a", "--resume", expect=3)
     assert json.loads((tmp_path / "a" / "check.json").read_text())["looks"] == state["looks"]
     assert again.stdout.splitlines()[0] == done.stdout.splitlines()[0]
