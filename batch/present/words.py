@@ -51,7 +51,7 @@ def ruled_out_list(outcome: dict[str, Any]) -> str:
 
 
 def scale_of(outcome: dict[str, Any], tile: int | None) -> dict[str, Any] | None:
-    return next((s for s in outcome["scales"] if s["tile"] == tile), None)
+    return next((s for s in outcome.get("scales", ()) if s["tile"] == tile), None)
 
 
 def every_tile(scale: dict[str, Any]) -> str:

@@ -161,6 +161,17 @@ def test_a_biased_headline_leads_with_the_claim_that_decided():
         "biased: -6.04 % (its interval over every tile needs more passes) in R of the 128x128 tile at x 0, y 0 "
         "(p 2.42e-06); whole image -7.86 % [-102.71 %, +8.10 %], not significant on its own"
     )
+    # Where one 128x128 tile is the whole image, it is called so; a whole image without an interval is not said
+    # to be not significant.
+    whole = dict(
+        outcome,
+        scales=[{"tile": 128, "tiles": 1}],
+        whole_image={"estimate": -0.1035, "low": None, "high": None, "confidence": 0.99},
+    )
+    assert words.sentence(whole) == (
+        "biased: -6.04 % (its interval over every tile needs more passes) in R of the whole image (p 2.42e-06); "
+        "whole image -10.35 % (no interval yet)"
+    )
     outcome["whole_image"] |= {"low": -0.09, "high": -0.06}  # the whole image agrees: it leads, as before
     assert words.sentence(outcome).startswith(
         "biased: whole image -7.86 % [-9.00 %, -6.00 %]; most significant -6.04 %"
