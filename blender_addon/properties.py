@@ -117,8 +117,8 @@ class WELCH_BIAS_PG_settings(bpy.types.PropertyGroup):
     )
     tolerance: FloatProperty(
         name="Tolerance %",
-        description="Stop at Equivalent once every tile of the finest size is within this relative difference of "
-        "the reference (0: stop only at Biased)",
+        description="Stop at Equivalent once every tile of the size the budget can bound is within this relative "
+        "difference of the reference (0: stop only at Biased)",
         **_declared("tolerance", percent=True),
         min=0.0,  # off, as the command line's `--tolerance off`
         max=options.OPTIONS["tolerance"].high * 100.0,  # excluded: refused when a run starts

@@ -65,7 +65,7 @@ conditional power over the tile-channels of the `biased` family (`Evidence.promi
 bias (each stop forgoes a rejection with conditional probability below it: Lan, Simon and Halperin 1982). The
 stop is non-binding and only ever turns a later verdict into ``inconclusive`` (or a coarser ``equivalent``,
 which the fixed-sequence rule above allows at any look), so neither error rate grows; what it saves and costs is
-measured in `benchmarks.studies.futility`.
+measured in `benchmarks.studies.same`.
 
 References: R. L. Berger, "Multiparameter hypothesis testing and acceptance sampling", Technometrics 24(4),
 1982; C. Jennison and B. W. Turnbull, "Group Sequential Methods with Applications to Clinical Trials", 2000;

@@ -139,9 +139,10 @@ def _add_check(sub) -> None:
         "--no-futility",
         dest="futility",
         action="store_false",
-        help="render the whole budget even when `equivalent` is out of its reach (by default the check stops "
-        "`inconclusive` from an eighth of the budget when its tile size would need more than 4x the budget and no "
-        "tile points to a bias; that stop gives up a bias found only late in the budget)",
+        help="render the whole budget even when neither claim is within its reach (by default the check stops "
+        "`inconclusive` once its claim can't be bounded by the budget at the current estimates and no tile-channel "
+        "has a 5%% chance left to reach `biased` by the budget, even with the bias the budget detects there: the "
+        "stop gives up at most 5%% of the power against such a bias)",
     )
     add_options(k, "check", ("alpha",))
     add_options(k.add_mutually_exclusive_group(), "check", ("max_passes", "max_seconds"))

@@ -314,8 +314,9 @@ OPTIONS = {
             "--equivalence-tile",
             "equivalence_tile",
             "integer",
-            "claim `equivalent` for N x N tiles (a multiple of --tile) instead of the finest: a weaker claim, "
-            "stated with its tile size everywhere the verdict is shown",
+            "claim `equivalent` for N x N tiles (a multiple of --tile) and only there, instead of the size chosen for "
+            "the budget (check: the finest its budget bounds; compare: the finest); stated with its tile size "
+            "everywhere the verdict is shown",
             low=1,
             high=MAX_RESOLUTION,
             metavar="N",
@@ -563,9 +564,9 @@ OPTIONS = {
             off=True,
             uses={
                 "check": Use(
-                    help="stop at `equivalent` once every tile of the finest tile size is bounded within this "
-                    "relative difference (default {default}; `off`: stop only at `biased`, so that a bias smaller "
-                    "than any tolerance is found given the passes)"
+                    help="stop at `equivalent` once every tile of the claim's size (the finest the budget bounds, "
+                    "or --equivalence-tile) is bounded within this relative difference (default {default}; `off`: "
+                    "stop only at `biased`, so that a bias smaller than any tolerance is found given the passes)"
                 ),
                 **dict.fromkeys(
                     ("compare", "selftest"),

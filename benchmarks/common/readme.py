@@ -194,8 +194,10 @@ Each is its own command, run from the repository root on the same cached pools; 
   else.
 - `python -m benchmarks.studies.unequal` (unequal.csv, unequal.png): `biased` on rendered A/A splits whose sides differ
   in passes (4 v 256 to 256 v 8, suites blessed at 256 and 512), before and after the permutation test, with
-  detection and paired A/A beside them. `python -m benchmarks.studies.futility` (futility.csv): the futility stop of
-  `equivalent` on rendered A/A pairs. Findings: [docs/findings/unequal_passes.md](../findings/unequal_passes.md).
+  detection and paired A/A beside them. Findings: [docs/findings/unequal_passes.md](../findings/unequal_passes.md).
+- `python -m benchmarks.studies.same` (same_*.csv, same.png): what `check` says on unbiased pairs of every built-in
+  scene at 128², the tile size of its `equivalent`, a local bias, the futility stop's price, `compare` at 2-4
+  passes of a caustic ([docs/results.md](../results.md#saying-the-same)).
 """
 
 
