@@ -278,9 +278,10 @@ def resampling_level(fractions, plan: SequentialPlan) -> float:
 def planned_fractions(fractions, plan: SequentialPlan, passes: int, budget: int, reference_passes: int | None):
     """The information fractions of every look so far and of those the schedule still plans up to `budget` (a
     fixed reference of `reference_passes`: its information counted, as `information_fraction` does)."""
+    so_far = tuple(float(f) for f in fractions)
     later = [information_fraction(m, plan.max_passes, reference_passes)
              for m in look_schedule(plan.max_passes, budget=budget) if m > passes]  # fmt: skip
-    return tuple(float(f) for f in fractions) + tuple(later)
+    return so_far + tuple(f for f in later if f > so_far[-1])
 
 
 def promise(scales, final_levels, fraction: float) -> float:
@@ -350,7 +351,7 @@ def sequential_look(
     (whole_level,) = _levels(tuple(fractions.tolist()), (plan.alpha,), plan.spending, plan.reserve)
     budget = plan.max_passes if budget is None else budget
     fixed = ref.n if ref.n != test.n else None  # a fixed reference (a suite's blessed one): its passes stay
-    ahead = planned_fractions(fractions, plan, n, budget, fixed)
+    ahead = planned_fractions(fractions, plan, test.n if fixed else n, budget, fixed)
     claimable = information_fraction(identical_passes(plan.alpha), plan.max_passes, fixed)
     equivalence_level = _equivalence_level(fractions, claimable, plan)
     # a budget too short for any claim plans as one look at the end would

@@ -7,6 +7,7 @@ Nothing here decides: the verdict and each number come from the outcome; these f
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from . import fmt
@@ -81,7 +82,9 @@ def finer_needs(outcome: dict[str, Any], tile: int) -> str | None:
 
 
 def _tolerance(outcome: dict[str, Any]) -> str:
-    return fmt.magnitude(outcome["tolerance"])
+    """'1.00 %', or with the digits a small tolerance needs ('0.0010 %', never '0.00 %')."""
+    tolerance = outcome["tolerance"]
+    return fmt.magnitude(tolerance, max(2, 1 - math.floor(math.log10(100 * tolerance))))
 
 
 def _identical_share(outcome: dict[str, Any]) -> str:
