@@ -91,7 +91,7 @@ def summarize(
         },
         "tile_channels": c.reason_counts,
         "top_tiles": top_tiles(c, outcome),
-        "notes": notes(c, outcome) + fixed[0],
+        "notes": notes(c, outcome) + fixed[0] + check_notes(check),
         "reference": {"name": names[0], "n": ref.n, "seeds": format_seeds(ref.seeds), "info": ref.info.to_json()},
         "test_run": {"name": names[1], "n": test.n, "seeds": format_seeds(test.seeds), "info": test.info.to_json()},
         "differences": image,
@@ -386,11 +386,13 @@ def warnings(summary: dict[str, Any]) -> list[str]:
 
 
 def check_record(
-    job, looks: list[dict], max_passes: int, last, early: tuple[float, int] | None = None
+    job, looks: list[dict], max_passes: int, last, early: tuple[float, int] | None = None, ended_pass: str | None = None
 ) -> dict[str, Any]:
     """What a `check` adds to its summary: the design (budget, tolerance, pairing, the early design's share of
-    `biased` and the passes where it ends), the looks, how it ended."""
+    `biased` and the passes where it ends), the looks, how it ended (`ended_pass`: what its time budget ended, in
+    a sentence, where it ended a pass still rendering)."""
     share, passes = early if early is not None else (0.0, None)
+    stopped = "decided" if last.verdict is not None else "budget spent"
     return {
         "max_passes": max_passes,
         "max_seconds": job.max_seconds,
@@ -401,8 +403,16 @@ def check_record(
         "early_passes": passes if share else None,
         "passes": last.passes,
         "looks": looks,
-        "stopped": "decided" if last.verdict is not None else "budget spent",
+        "stopped": "time budget ended a pass" if ended_pass else stopped,
+        "ended_pass": ended_pass,
     }
+
+
+def check_notes(check: dict[str, Any] | None) -> list[str]:
+    """What a reader of a check's verdict must know about how it ended: that its time budget ended a pass."""
+    if not check or not check.get("ended_pass"):
+        return []
+    return [f"{check['ended_pass']}: the verdict is on the passes rendered before it"]
 
 
 def verdict_line(summary: dict[str, Any]) -> str:
