@@ -1,6 +1,6 @@
 """The batch tool's exit codes, its exception for bad input and for a renderer that failed (a message of one line
-for the user, exit code 2). Standard library only: the entry points read the exit codes even when nothing else
-imports."""
+for the user, exit code 2), and for a run that ended with too little to decide on (exit code 3). Standard library
+only: the entry points read the exit codes even when nothing else imports."""
 
 from __future__ import annotations
 
@@ -20,6 +20,12 @@ class RendererFailed(BatchError):
     quoting its own reason where it gave one (`batch.jobs.launch.JobProcess.error_message`)."""
 
 
+class Undecided(BatchError):
+    """A run that ended with too little to decide on (its time budget ended the passes before two a side were
+    rendered): `inconclusive`, exit code 3, with one line saying why. The one BatchError that is no input error:
+    whoever tells the two apart catches this one first."""
+
+
 class Exit(enum.IntEnum):
     """The exit code of every process of the tool, one meaning each, so that CI (and the process that started
     a job) can act on it."""
@@ -30,3 +36,7 @@ class Exit(enum.IntEnum):
     INCONCLUSIVE = 3  #: `inconclusive`; a suite case that can't be confirmed
     INTERNAL = 4  #: an internal error, also when the tool can't even start
     INTERRUPTED = 130  #: Ctrl-C or SIGTERM: what was rendered is kept, ``--resume`` continues
+
+
+#: What every process of the tool says, in one line on stderr, when Ctrl-C or SIGTERM stopped it (`Exit.INTERRUPTED`).
+INTERRUPTED_LINE = "interrupted: the statistics written so far are kept (continue with --resume)"

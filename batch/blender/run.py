@@ -146,10 +146,16 @@ def render_run(job: RenderJob, progress: Progress, requests=None) -> wc.TileStat
             renderer = render.PassRenderer(scene, lobes=job.lobes)
         with renderer, StopRequest() as stop:
             renderer.stop = stop  # a command's pass ends at once on a stop; a Cycles pass is short
+            # A new command run learns its image size from its first pass: rendering starts with it (a time
+            # budget counts it, `batch.jobs.side.Side.running_seconds`), so the run says it starts before it.
+            probing = job.command is not None and not os.path.exists(job.out)
+            if probing:
+                progress.start(0, job.out)
             stats, layers = _start(job, lambda: _image_size(job, scene, renderer), info, scene)
             done = set(stats.seeds)
             todo = [seed for seed in job.seeds if seed not in done]
-            progress.start(len(job.seeds) - len(todo), job.out)
+            if not probing:
+                progress.start(len(job.seeds) - len(todo), job.out)
             if requests is None:
                 render_passes(renderer, todo, stats, progress, job.on_nan, job.out, job.checkpoint_every, stop, layers,
                               job.pass_images)  # fmt: skip
@@ -267,8 +273,14 @@ class StopRequest:
     SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
     def __init__(self):
-        self.requested = False
+        self._requested = False
         self._old: dict = {}
+
+    @property
+    def requested(self) -> bool:
+        """Whether a stop was asked for: a signal while active, or one before that a library swallowed (the
+        command line's `batch.jobs.protocol.Interrupts` noted it)."""
+        return self._requested or protocol.Interrupts.pending()
 
     def __enter__(self) -> StopRequest:
         for signum in self.SIGNALS:
@@ -281,7 +293,7 @@ class StopRequest:
         return self
 
     def _note(self, _signum, _frame) -> None:
-        self.requested = True
+        self._requested = True
 
     def __exit__(self, *exc) -> bool:
         for signum, old in self._old.items():

@@ -29,10 +29,10 @@ import time
 import traceback
 
 from .._siblings import welch_core as wc
-from ..errors import BatchError, Exit
+from ..errors import INTERRUPTED_LINE, BatchError, Exit, Undecided
 from ..jobs import job as jobs
 from ..jobs.options import TEST_SIDE, add_options
-from ..jobs.protocol import Probed, SigtermAsInterrupt, verdict_exit
+from ..jobs.protocol import Interrupts, Probed, verdict_exit
 
 INPUT_ERRORS = (BatchError, wc.WelchInputError, OSError)
 
@@ -364,19 +364,29 @@ def main(argv: list[str] | None = None) -> int:
             stream.reconfigure(errors="backslashreplace")
     Parser.json_progress = "--json-progress" in (sys.argv[1:] if argv is None else argv)
     args = build_parser().parse_args(argv)
+    interrupts = Interrupts()
     try:
-        with SigtermAsInterrupt():
-            return COMMANDS[args.command](args)
-    except KeyboardInterrupt:
-        print("interrupted: the statistics written so far are kept (continue with --resume)", file=sys.stderr)
-        return Exit.INTERRUPTED
-    except INPUT_ERRORS as exc:
-        _report_error(args, _describe(exc))
-        return Exit.USAGE
-    except Exception as exc:
+        with interrupts:
+            code = COMMANDS[args.command](args)
+    except BaseException as exc:  # an interrupt is one wherever it lands, whatever it surfaced as
+        if interrupts.interrupted(exc):
+            print(INTERRUPTED_LINE, file=sys.stderr)
+            return Exit.INTERRUPTED
+        if isinstance(exc, Undecided):
+            print(f"verdict: inconclusive: {exc}")
+            return Exit.INCONCLUSIVE
+        if isinstance(exc, INPUT_ERRORS):
+            _report_error(args, _describe(exc))
+            return Exit.USAGE
+        if not isinstance(exc, Exception):
+            raise
         traceback.print_exc()
         _report_error(args, f"internal error: {type(exc).__name__}: {exc}")
         return Exit.INTERNAL
+    if interrupts.interrupted():  # a library swallowed the KeyboardInterrupt and the command ran on
+        print(INTERRUPTED_LINE, file=sys.stderr)
+        return Exit.INTERRUPTED
+    return code
 
 
 def _describe(exc: Exception) -> str:

@@ -3,7 +3,9 @@
 Each side is a render job served by its own process (``render --serve``: the scene stays loaded, the passes come
 in chunks asked for on stdin), so the two sides may be two scenes, two settings or two Blender builds. After every
 chunk both statistics files are read and `welch_core.looks.sequential_look` decides: `biased` or `equivalent`
-stop the run; at the budget it ends `inconclusive`, saying which bias it rules out. The looks are recorded in
+stop the run; at the budget it ends `inconclusive`, saying which bias it rules out. A time budget bounds the
+render seconds: a pass still rendering `BUDGET_MARGIN` seconds after it is spent is stopped (its render
+process's group ended), and the check ends with the verdict on the passes before it. The looks are recorded in
 ``check.json`` next to the statistics, so an interrupted check continues with ``--resume`` exactly where it
 stopped (the boundaries are recomputed from the recorded looks).
 
@@ -22,7 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .._siblings import welch_core as wc
-from ..errors import BatchError
+from ..errors import BatchError, Undecided
 from ..jobs import protocol
 from ..jobs.distributed import Cluster, ClusterSide, cluster
 from ..jobs.job import RenderJob
@@ -31,6 +33,7 @@ from ..jobs.pairs import PixelPairs
 from ..jobs.samples import BUILTIN, AutoSamples, SceneSamples, auto_samples, side_settings
 from ..jobs.seeds import MAX_PASSES, parse_seeds
 from ..jobs.side import Side, probe_scenes
+from ..present import fmt
 from ..present.progress import Progress
 
 STATE_FILE = "check.json"
@@ -45,6 +48,14 @@ UNPAIRED_SEEDS = MAX_PASSES  # --max-passes is at most this
 
 #: Passes a side when neither --max-passes nor --max-seconds is given.
 DEFAULT_MAX_PASSES = default("max_passes", "check")
+
+#: Render seconds past a time budget (--max-seconds, a suite case's `seconds`) after which the passes still
+#: rendering are stopped, their process groups ended. The looks are planned to spend the budget (`_fix_budget`),
+#: and a chunk that starts before it is spent may end a little after it: a Cycles pass of a check takes well under
+#: this, so an ordinary pass is let finish. A pass that runs on (a hung renderer; a pass longer than this, which
+#: is stopped too) costs only itself: the passes before it are saved and the check ends with the verdict on them.
+#: A few seconds, not a share of the budget: the budget is the promise, whatever its size.
+BUDGET_MARGIN = 2.0
 
 
 @dataclass(frozen=True)
@@ -149,6 +160,7 @@ class Check:
         #: the size of the `equivalent` claim, chosen for the budget at its sizing look (`welch_core.sizing`) and
         #: kept from then on (None: not chosen yet, or the user's --equivalence-tile, which the plan holds)
         self.claim_tile: int | None = None
+        self.ended_pass: str | None = None  # what the time budget ended, in a sentence (None: it ended nothing)
 
     # -- state on disk ---------------------------------------------------------------------------------------
 
@@ -163,6 +175,7 @@ class Check:
             "test": _side_record(self.job.test),
             "render_seconds": self.render_seconds,
             "claim_tile": self.claim_tile,
+            "ended_pass": self.ended_pass,
             "looks": self.looks,
         }
 
@@ -230,6 +243,7 @@ class Check:
         if claim is not None and (isinstance(claim, bool) or not isinstance(claim, int) or claim < 1):
             raise BatchError(f"{path} is not a readable check state (claim_tile {claim!r})")
         self.claim_tile = claim
+        self.ended_pass = state.get("ended_pass")
 
     def _grown_budget(self, plan: wc.SequentialPlan, budget: int) -> int:
         """The budget a resumed check gets from --max-passes: the last look of the schedule it fits (the looks past
@@ -257,6 +271,8 @@ class Check:
             side.start()
 
     def _stop(self) -> None:
+        for side in self.rendered:  # every side told before any is waited for
+            side.ask_to_stop()
         for side in self.rendered:
             side.stop()
 
@@ -274,9 +290,40 @@ class Check:
         waiting = list(self.rendered)
         while waiting:
             waiting = [side for side in waiting if not side.poll()]
+            if waiting and self._past_budget(before, waiting):
+                self._end_passes(before, waiting)
+                return
             if waiting:
                 yield
         self.render_seconds += sum(side.render_seconds for side in self.rendered) - before
+
+    def _spent(self, before: float, waiting: list[Side]) -> float:
+        """The render seconds spent so far, with those of the passes rendering now (`before`: the sides' render
+        seconds when the chunk was asked for)."""
+        rendered = sum(side.render_seconds for side in self.rendered) - before
+        return self.render_seconds + rendered + sum(side.running_seconds() for side in waiting)
+
+    def _past_budget(self, before: float, waiting: list[Side]) -> bool:
+        """Whether the passes rendering now have run `BUDGET_MARGIN` past the time budget (never without one)."""
+        budget = self.job.max_seconds
+        return budget is not None and self._spent(before, waiting) > budget + BUDGET_MARGIN
+
+    def _end_passes(self, before: float, waiting: list[Side]) -> None:
+        """The time budget is spent: stop the passes still rendering (their sides end, the passes they saved stay
+        theirs) and count the seconds they ran as spent, so that a resumed check knows its budget spent."""
+        spent = self._spent(before, waiting)
+        budget = fmt.duration(self.job.max_seconds)
+        self.progress.warning(f"the time budget ({budget}) is spent: stopping the passes still rendering")
+        for side in waiting:
+            side.ask_to_stop()
+        for side in waiting:
+            side.end_pass()
+        rendered = sum(side.render_seconds for side in self.rendered) - before
+        self.render_seconds = max(self.render_seconds + rendered, spent)
+        whose = f"the {waiting[0].name} side's pass" if len(waiting) == 1 else "the passes of both sides"
+        self.ended_pass = (f"the time budget ({budget}) ended {whose} still rendering at {fmt.duration(spent)} of "
+                           "render seconds")  # fmt: skip
+        self._save_state()
 
     def _fraction(self, passes: int) -> float:
         fixed = self.reference.passes if self.job.fixed_reference else None
@@ -349,17 +396,20 @@ class Check:
             ref, test = (ref if self.job.fixed_reference else self._at(ref, n)), self._at(test, n)
             final = last.get("reason") != "futile"  # a futility stop is made again at the look where it was made
             return self._look(ref, test, fractions, final), ref, test
+        deadline = None if self.job.max_seconds is None else self.job.max_seconds
         if self.plan is None:
-            yield from self._render_to(wc.looks.FIRST_LOOK)
+            if self.ended_pass is None:  # (a resumed check whose budget ended its first passes renders no more)
+                yield from self._render_to(wc.looks.FIRST_LOOK)
             self._fix_budget()
         schedule = [n for n in wc.look_schedule(self.plan.max_passes, budget=self.budget) if n > done]
-        deadline = None if self.job.max_seconds is None else self.job.max_seconds
         look = None
         for index, n in enumerate(schedule):
-            out_of_time = deadline is not None and self.render_seconds >= deadline
+            out_of_time = self.ended_pass is not None or (deadline is not None and self.render_seconds >= deadline)
             if out_of_time:
                 break
             yield from self._render_to(n)
+            if self.ended_pass is not None:
+                break
             ref, test = self._load()
             n = min(ref.n, test.n) if not self.job.fixed_reference else test.n
             fractions.append(self._fraction(n))
@@ -385,11 +435,26 @@ class Check:
             yield
             if look.verdict is not None:
                 return look, ref, test
+        few = [side for side in self.rendered if side.passes < wc.looks.FIRST_LOOK]
+        if few and self.ended_pass is not None:  # the time budget ended the first passes
+            counts = ", ".join(f"{side.passes} of the {side.name} side" for side in few)
+            raise Undecided(f"{self.ended_pass}: too few passes to look at ({counts}; a look needs "
+                            f"{wc.looks.FIRST_LOOK} a side)")  # fmt: skip
+        # The budget is spent (or the time): the last look, as the final one, on the passes both sides have (a
+        # chunk the time budget ended leaves the sides at other counts).
         ref, test = self._load()
-        if not fractions:  # nothing looked at (resumed after the last look): the first look on what is there
-            fractions = [self._fraction(min(ref.n, test.n))]
-        # The budget is spent (or the time): the last look, as the final one.
-        return self._look(ref, test, fractions, True), ref, test
+        n = test.n if self.job.fixed_reference else min(ref.n, test.n)
+        ref, test = (ref if self.job.fixed_reference else self._at(ref, n)), self._at(test, n)
+        if n <= (self.looks[-1]["passes"] if self.looks else 0):
+            return self._look(ref, test, fractions, True), ref, test
+        # Passes no look saw (the time budget ended a chunk; a check stopped before its look and resumed): a look
+        # of their own.
+        fractions.append(self._fraction(n))
+        look = self._look(ref, test, fractions, True)
+        self.looks.append(_look_record(look, self.render_seconds))
+        self._save_state()
+        self.last_look = look, ref, test
+        return look, ref, test
 
     def _look(self, ref: wc.TileStats, test: wc.TileStats, fractions, final: bool) -> wc.Look:
         """The look at the sides' passes, with each pixel's paired differences where the check keeps them."""
@@ -518,7 +583,7 @@ def report_check(check: Check, look: wc.Look, ref: wc.TileStats, test: wc.TileSt
     job = check.job
     layers = (wc.load_layers(job.reference.out, pixels=False), wc.load_layers(job.test.out, pixels=False))
     early = (check.plan.early, wc.looks.EARLY_PASSES)
-    record = check_record(job, check.looks, check.plan.max_passes, look, early)
+    record = check_record(job, check.looks, check.plan.max_passes, look, early, check.ended_pass)
     comparison = look_comparison(job, ref, test, check.pixel_pairs, check.plan.pixel_variance)
     assessment = assess(comparison, ref, test, outcome=look.outcome, check=record, layers=layers)
     return write(job.out, assessment, ref, test), assessment

@@ -60,7 +60,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from .._siblings import welch_core as wc
-from ..errors import BatchError, Exit
+from ..errors import BatchError, Exit, Undecided
 from ..jobs import command as jobs_command
 from ..jobs import options
 from ..jobs.distributed import cluster as side_cluster
@@ -517,6 +517,9 @@ def _run_case(
             seed_offset=seed_offset,
         )
         verdict, summary = run_check(job, progress_factory(count), where)
+    except Undecided as exc:  # its time budget ended the first passes: nothing to look at
+        return CaseResult(case, device, "inconclusive", wc.Verdict.INCONCLUSIVE.label, str(exc),
+                          seconds=time.perf_counter() - start)  # fmt: skip
     except BatchError as exc:
         status = "skipped" if NO_GPU_MESSAGE in str(exc) else "error"
         if status == "skipped":
@@ -531,6 +534,8 @@ def _run_case(
         message += " (expected: biased)"
     if status == "underpowered":
         message = f"{underpowered_text(detectable, tolerance, case.tile)}; {message}"
+    if check.get("ended_pass"):
+        message += f" ({check['ended_pass']})"
     return CaseResult(case, device, status, verdict.label, message,
                    seconds=check["looks"][-1]["seconds"] if check["looks"] else 0.0, passes=check["passes"],
                    folder=str(folder), summary=summary)  # fmt: skip

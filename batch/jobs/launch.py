@@ -210,6 +210,7 @@ class JobProcess:
         self.stdout_tail: collections.deque[str] = collections.deque(maxlen=TAIL_LINES)
         self.stderr_tail: collections.deque[str] = collections.deque(maxlen=TAIL_LINES)
         self.last_error = ""
+        self._told_to_stop = False
         try:
             self.popen = subprocess.Popen(
                 command.argv,
@@ -298,12 +299,18 @@ class JobProcess:
             thread.join(timeout)
         return code
 
-    def stop(self, timeout: float = 30.0) -> None:
-        """Ask the job to stop after its current pass (it saves and exits 130); kill it if it does not. A serving
-        job waiting for its next chunk just sees its requests end."""
+    def ask_to_stop(self) -> None:
+        """Ask the job to stop after its current pass (it saves and exits 130), without waiting. A serving job
+        waiting for its next chunk just sees its requests end."""
         self.close_requests()
-        if self.popen.poll() is None:
+        if self.popen.poll() is None and not self._told_to_stop:
+            self._told_to_stop = True  # once: a second signal would cut short what the first one started
             self.signal(signal.SIGTERM)
+
+    def stop(self, timeout: float = 30.0) -> None:
+        """Ask the job to stop after its current pass (`ask_to_stop`); kill it if it has not ended within
+        `timeout` seconds."""
+        self.ask_to_stop()
         self.end(timeout)
 
     def end(self, timeout: float) -> int:

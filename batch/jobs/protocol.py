@@ -1,7 +1,8 @@
 """What crosses between the tool's processes, defined once: a render job's progress events, the chunk requests
 a serving job takes on stdin, and the exit codes of every process and what each means. Each has one way out
 and one way in (`to_line` / `parse`, `ChunkRequest.to_line` / `parse_request`), and every sender and receiver
-(the command line, ``check``, the suites, the Dask workers, the Blender add-on) uses them.
+(the command line, ``check``, the suites, the Dask workers, the Blender add-on) uses them. How every process of the
+tool takes Ctrl-C and SIGTERM is here too (`Interrupts`): standard library only, the entry point imports it first.
 
 A job run with ``--json-progress`` writes each event as one JSON object on its own line of stdout, e.g.
 ``{"event": "pass", "done": 3, "total": 8, "seed": 2, "seconds": 0.21, "eta": 1.05}``; whoever started it reads
@@ -10,10 +11,13 @@ the lines back with `parse`, which skips anything else a renderer prints.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
+import logging
 import math
 import signal
+import sys
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -241,25 +245,108 @@ def interrupted(code: int | None) -> bool:
     return code is not None and (code == Exit.INTERRUPTED or -code in signals or code - 128 in signals)
 
 
-class SigtermAsInterrupt:
-    """While active, SIGTERM (a job scheduler's or the add-on's cancel) stops this process as Ctrl-C does: the
-    handler raises KeyboardInterrupt in the main thread, so a check saves its state and its sides, a cluster's
-    outstanding chunks are cancelled, and the process exits `Exit.INTERRUPTED` saying so. (A render process
-    only notes the signal, `batch.blender.run.StopRequest`: there, raising could land inside Blender.)"""
+class Interrupts:
+    """While active, Ctrl-C (SIGINT) and SIGTERM (a job scheduler's or the add-on's cancel) stop this process the
+    same way: the handler notes the signal and raises KeyboardInterrupt in the main thread, so a check saves its
+    state and stops its sides, a cluster's outstanding chunks are cancelled, and the process exits
+    `Exit.INTERRUPTED` saying `batch.errors.INTERRUPTED_LINE`. Wherever the KeyboardInterrupt lands,
+    `interrupted` knows an exception for the interrupt's, also one it turned into another (inside an import, an
+    extension module raises ImportError; a library wraps what it caught): by the note of the signal, or by the
+    KeyboardInterrupt in the exception's chain. Where a library swallowed it, or it landed where Python can't
+    raise it (a weakref callback, a ``__del__``: it is not printed), and the tool went on, the waits for a render
+    (`batch.jobs.side.Side.poll`, a render loop's `batch.blender.run.StopRequest`) ask `pending` and raise it
+    again.
 
-    def __enter__(self) -> SigtermAsInterrupt:
-        self._old = None
-        try:
-            self._old = signal.signal(signal.SIGTERM, self._raise)
-        except ValueError:  # not the main thread: leave signals alone
-            pass
+    A signal this process was told to ignore (a background job of a non-interactive shell, a Dask worker's
+    render process) stays ignored, and a handler installed from C (Blender's), which Python could not put back,
+    is left alone. (A render process only notes the signal while it renders, `batch.blender.run.StopRequest`:
+    there, raising could land inside Blender.)"""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    #: The instances now active in this process (nested: the entry point's, then the command line's).
+    _active: list[Interrupts] = []
+    _holding = 0  # `held` blocks running: a signal then raises at their end
+    _deferred = False  # a signal came while held
+
+    def __init__(self):
+        self.received: int | None = None  # the first signal that came while active
+        self._old: dict = {}
+        self._unraisable = None  # the hook this one replaced while active
+        self._logging: int | None = None  # the level logging was disabled at before the signal
+
+    @classmethod
+    def pending(cls) -> bool:
+        """Whether a signal came to an instance that is still active: this process was interrupted."""
+        return any(active.received is not None for active in cls._active)
+
+    def __enter__(self) -> Interrupts:
+        Interrupts._active.append(self)
+        self._unraisable, sys.unraisablehook = sys.unraisablehook, self._ignore_interrupt
+        for signum in self.SIGNALS:
+            if signal.getsignal(signum) in (signal.SIG_IGN, None):
+                continue
+            try:
+                self._old[signum] = signal.signal(signum, self._raise)
+            except ValueError:  # not the main thread: leave signals alone
+                pass
         return self
 
-    @staticmethod
-    def _raise(_signum, _frame) -> None:
+    @classmethod
+    @contextlib.contextmanager
+    def held(cls):
+        """A block that an interrupt does not cut in two (a render process started and recorded, so that it is
+        stopped with the others): a signal that comes while it runs raises KeyboardInterrupt at its end."""
+        cls._holding += 1
+        try:
+            yield
+        finally:
+            cls._holding -= 1
+            if not cls._holding and cls._deferred:
+                cls._deferred = False
+                raise KeyboardInterrupt  # (what the block raised, if anything, is its context)
+
+    def _raise(self, signum, _frame) -> None:
+        if self.received is None:
+            self.received = signum
+            # What stops on the way out (a Dask cluster cancelling its tasks) logs nothing: the process says one line.
+            self._logging = logging.root.manager.disable
+            logging.disable(logging.CRITICAL)
+        if Interrupts._holding:
+            Interrupts._deferred = True
+            return
         raise KeyboardInterrupt
 
+    def _ignore_interrupt(self, unraisable) -> None:
+        """`sys.unraisablehook`: an interrupt where it can't be raised is noted already, and not printed."""
+        if not isinstance(unraisable.exc_value, KeyboardInterrupt):
+            self._unraisable(unraisable)
+
     def __exit__(self, *_exc) -> bool:
-        if self._old is not None:
-            signal.signal(signal.SIGTERM, self._old)
+        for signum, old in self._old.items():
+            signal.signal(signum, old)
+        self._old = {}
+        if self._unraisable is not None:
+            sys.unraisablehook, self._unraisable = self._unraisable, None
+        if self._logging is not None:
+            logging.disable(self._logging)
+            self._logging = None
+        if self in Interrupts._active:
+            Interrupts._active.remove(self)
+        return False
+
+    def interrupted(self, exc: BaseException | None = None) -> bool:
+        """Whether `exc` is the interrupt's: a signal came while active, or a KeyboardInterrupt is `exc` or in the
+        chain of exceptions it was raised from or during (``__cause__``, ``__context__``)."""
+        if self.received is not None:
+            return True
+        todo, seen = [exc], set()
+        while todo:
+            exc = todo.pop()
+            if exc is None or id(exc) in seen:
+                continue
+            if isinstance(exc, KeyboardInterrupt):
+                return True
+            seen.add(id(exc))
+            todo += [exc.__cause__, exc.__context__]
         return False

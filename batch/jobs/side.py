@@ -66,6 +66,8 @@ class Side:
         self.pass_seconds: list[float] = []  # each of them
         self.process: JobProcess | None = None
         self._asked = 0  # passes the current request waits for (0: none outstanding)
+        self._rendering_since: float | None = None  # when the render process said it starts rendering
+        self.ended = False  # `end_pass` ended it: no more requests, nothing to finish
 
     # -- start and stop --------------------------------------------------------------------------------------
 
@@ -78,17 +80,36 @@ class Side:
             bpy_version(self.job.python)
         if Path(self.job.out).exists():
             self.passes = wc.load_stats(self.job.out, pixels=False).n
-        self.process = JobProcess(job_command(self.job, base_env=self.env, serve=True), requests=True)
+        command = job_command(self.job, base_env=self.env, serve=True)
+        with protocol.Interrupts.held():  # started and recorded at once: `stop` reaches whatever was started
+            self.process = JobProcess(command, requests=True)
         self._started_at, self._alive = time.monotonic(), False
+
+    def ask_to_stop(self) -> None:
+        """Tell the side's process to stop after its current pass (and save), without waiting: `stop` waits. A run
+        that stops several sides tells them all first, so that none renders on whatever cuts its waiting short."""
+        if self.process is not None and not self.ended:
+            self.process.ask_to_stop()
 
     def stop(self) -> None:
         """End the side now: its process finishes its current pass and saves (or is killed)."""
-        if self.process is not None:
+        if self.process is not None and not self.ended:
             self.process.stop()
+
+    def end_pass(self) -> None:
+        """End the side in the middle of its pass (its time budget is spent): its process stops (the passes it
+        finished are saved; a command's pass ends at once), and is killed with its whole process group after
+        `HUNG_WAIT` seconds; the passes in its statistics file are counted, and the side takes no more requests."""
+        if self.process is None or self.ended:
+            return
+        self.process.stop(HUNG_WAIT)
+        self._relay()  # the passes that ended meanwhile
+        self.passes = wc.load_stats(self.job.out, pixels=False).n if Path(self.job.out).exists() else 0
+        self._asked, self.ended = 0, True
 
     def finish(self) -> None:
         """No more passes: the serving process saves, ends and is checked."""
-        if self.process is None:
+        if self.process is None or self.ended:
             return
         self.process.close_requests()
         code = self.process.wait(FINISH_WAIT)
@@ -139,7 +160,9 @@ class Side:
 
     def poll(self) -> bool:
         """Relay what the side did; True once the passes asked for are saved (or none are outstanding). Never
-        blocks."""
+        blocks. Raises KeyboardInterrupt where this process was interrupted and went on (a library swallowed it)."""
+        if protocol.Interrupts.pending():
+            raise KeyboardInterrupt
         if not self._asked:
             return True
         saved = self._relay()
@@ -162,6 +185,14 @@ class Side:
             raise BatchError(self._named(f"{self._who} did not start rendering within {START_TIMEOUT:.0f} s "
                                          "(WELCH_START_TIMEOUT sets the limit)"))  # fmt: skip
         return False
+
+    def running_seconds(self) -> float:
+        """Seconds the pass rendering now has run: since the last pass ended, the request, or the render process
+        said it starts rendering, whichever came last; 0 while no passes are asked for, and while the process
+        starts (loading its renderer and the scene is no pass's time, `START_TIMEOUT` bounds it)."""
+        if not self._asked or self._rendering_since is None:
+            return 0.0
+        return time.monotonic() - max(self._last_pass, self._rendering_since)
 
     def _check_pass_time(self) -> None:
         """Stop the side when no pass has ended for longer than `launch.pass_limit` (a hung renderer), once one
@@ -210,6 +241,8 @@ class Side:
             elif isinstance(event, protocol.Failed):
                 continue  # reported once, by whoever handles the exit
             else:
+                if isinstance(event, protocol.Started):
+                    self._rendering_since = time.monotonic()
                 if isinstance(event, protocol.PassDone):
                     self.render_seconds += event.seconds
                     self.pass_seconds.append(event.seconds)
@@ -261,8 +294,8 @@ def run_job(job: RenderJob, progress, name: str | None = None) -> None:
     progress to `progress`; raise as `Side` does. A process that exits 0 without having saved the passes asked
     for (a `--blender` that is not Blender) is an error, not a success."""
     side = Side(name, job, progress, warn=progress.warning)
-    side.start()
     try:
+        side.start()
         side.request(len(job.seeds))
         side.wait()
         side.finish()

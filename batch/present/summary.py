@@ -414,15 +414,19 @@ def sample_notes(ref: wc.RunInfo, test: wc.RunInfo, identical: bool = False) -> 
 
 
 def check_notes(check: dict[str, Any] | None) -> list[str]:
-    """What a check's own choices add to the notes: the samples ``--spp auto`` chose, where more than 1."""
+    """What a check's own choices and ending add to the notes: the samples ``--spp auto`` chose, where more than
+    1; that its time budget ended a pass."""
+    out = []
+    if (check or {}).get("ended_pass"):
+        out.append(f"{check['ended_pass']}: the verdict is on the passes rendered before it")
     auto = (check or {}).get("auto_samples")
     if not auto:
-        return []
+        return out
     names = "; ".join(f"{d['name']} ({' → '.join(_setting_value(v) for v in d['values'])}, from {d['fewest']})"
                       for d in auto["differing"])  # fmt: skip
     source = "the scene files' own" if auto["files"] == auto["spp"] else "the fewest at which that acts"
-    return [f"--spp auto: {_per_pass(auto['spp'])}, {source}, since the sides differ in what acts only from some "
-            f"samples per render: {names}"]  # fmt: skip
+    return out + [f"--spp auto: {_per_pass(auto['spp'])}, {source}, since the sides differ in what acts only from "
+                  f"some samples per render: {names}"]  # fmt: skip
 
 
 def selftest_summary(check: wc.Comparison | None) -> dict[str, Any] | None:
@@ -456,11 +460,13 @@ def warnings(summary: dict[str, Any]) -> list[str]:
 
 
 def check_record(
-    job, looks: list[dict], max_passes: int, last, early: tuple[float, int] | None = None
+    job, looks: list[dict], max_passes: int, last, early: tuple[float, int] | None = None, ended_pass: str | None = None
 ) -> dict[str, Any]:
     """What a `check` adds to its summary: the design (budget, tolerance, pairing, the early design's share of
-    `biased` and the passes where it ends), the looks, how it ended."""
+    `biased` and the passes where it ends), the looks, how it ended (`ended_pass`: what its time budget ended, in
+    a sentence, where it ended a pass still rendering)."""
     share, passes = early if early is not None else (0.0, None)
+    stopped = "decided" if last.verdict is not None else "budget spent"
     return {
         "max_passes": max_passes,
         "max_seconds": job.max_seconds,
@@ -473,7 +479,8 @@ def check_record(
         "early_passes": passes if share else None,
         "passes": last.passes,
         "looks": looks,
-        "stopped": "decided" if last.verdict is not None else "budget spent",
+        "stopped": "time budget ended a pass" if ended_pass else stopped,
+        "ended_pass": ended_pass,
     }
 
 

@@ -153,7 +153,9 @@ def test_a_failing_command_is_one_line_and_keeps_the_passes_before_it(toy):
     assert wc.load_stats(toy / "r.npz").seeds == [774, 775, 776]
     done = batch("render", "--command", "true {seed} {out}", "--seeds", "0:2", "--spp", 1, "--out", "t.npz",
                  cwd=toy, check=2)  # fmt: skip
-    assert done.stderr.startswith("error: --command exited 0 for seed 0 without writing {out} (")
+    # the run's start line (a log sees its progress), then the one error line
+    assert done.stderr.splitlines()[-1].startswith("error: --command exited 0 for seed 0 without writing {out} (")
+    assert sum(line.startswith("error:") for line in done.stderr.splitlines()) == 1
     # a pass with another channel set (a light component written instead of the image) is refused in one line
     (toy / "layers.py").write_text(
         "import sys\nimport numpy as np\nimport welch_core as wc\nseed, out = int(sys.argv[1]), sys.argv[2]\n"
@@ -180,7 +182,8 @@ def test_a_failing_command_is_one_line_and_keeps_the_passes_before_it(toy):
     (toy / "stop.py").write_text("import sys\nsys.exit(130)\n")
     done = batch("render", "--command", "{python} stop.py {seed} {out}", "--seeds", "0:2", "--spp", 1, "--out", "s.npz",
                  cwd=toy, check=2)  # fmt: skip
-    assert done.stderr.splitlines() == ["error: --command failed for seed 0 (exit code 130): no output"]
+    assert done.stderr.splitlines()[-1] == "error: --command failed for seed 0 (exit code 130): no output"
+    assert sum(line.startswith("error:") for line in done.stderr.splitlines()) == 1
 
 
 def test_a_hung_pass_is_ended_by_sigterm_at_once_and_by_the_pass_limit(toy):

@@ -392,7 +392,7 @@ def test_ctrl_c_keeps_what_arrived_and_resume_completes_the_run(reference, clust
     def terminate(_seed):  # SIGTERM, as a job scheduler's cancel; the command line treats it as Ctrl-C
         os.kill(os.getpid(), signal.SIGTERM)
 
-    with pytest.raises(KeyboardInterrupt), protocol.SigtermAsInterrupt():  # as `batch.cli.main` runs every command
+    with pytest.raises(KeyboardInterrupt), protocol.Interrupts():  # as `batch.cli.main` runs every command
         dist.render_distributed(job, Recorder(len(SEEDS), on_pass=terminate), dist.Cluster(cluster), chunk=CHUNK)
     kept = wc.load_stats(job.out)
     assert CHUNK <= kept.n < len(SEEDS) and len(set(kept.seeds)) == kept.n and set(kept.seeds) <= set(SEEDS)

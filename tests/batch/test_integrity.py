@@ -118,9 +118,10 @@ def test_python_m_batch_works_from_any_folder(tmp_path):
 def test_a_failure_before_argument_parsing_is_internal_not_biased(tmp_path):
     """A broken installation must not exit 1, which means `biased` to CI."""
     broken = tmp_path / "batch"
-    broken.mkdir()
+    (broken / "jobs").mkdir(parents=True)
     (broken / "__init__.py").write_text("")
-    for name in ("__main__.py", "errors.py"):  # the entry point and the exit codes it needs (standard library only)
+    # the entry point, the exit codes and the interrupts' handling it needs (standard library only)
+    for name in ("__main__.py", "errors.py", "jobs/__init__.py", "jobs/protocol.py"):
         (broken / name).write_text((ROOT / "batch" / name).read_text())
     (broken / "cli.py").write_text("import no_such_module\n")
     env = dict(os.environ, PYTHONPATH=str(tmp_path))
