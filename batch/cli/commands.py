@@ -149,7 +149,7 @@ def _add_check(sub) -> None:
         "stop gives up at most 5%% of the power against such a bias)",
     )
     add_options(k, "check", ("alpha",))
-    add_options(k.add_mutually_exclusive_group(), "check", ("max_passes", "max_seconds"))
+    add_options(k, "check", ("max_passes", "max_seconds"))
     add_options(k, "check", ("spp", "tile", "resolution", "device", "sampling_pattern", "lobes"))
     add_options(k, "check", TEST_SIDE, side="test")
     k.add_argument("--unpaired", action="store_true", help="disjoint seeds even on one build (an A/A check)")

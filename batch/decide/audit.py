@@ -283,7 +283,7 @@ class AuditSpec:
     changes: tuple[Change, ...]
     build: Build = Build("current")  # this bpy (`batch.decide.matrix.build_of` makes another)
     max_passes: int = options.default("max_passes", "audit")
-    max_seconds: float | None = None
+    max_seconds: float | None = options.default("max_seconds", "audit")
     alpha: float = options.default("alpha", "audit")
     tolerance: float | None = options.default("tolerance", "audit")
     resolution: tuple[int, int] | None = None
@@ -418,12 +418,15 @@ def probe_release(jobs: list[RenderJob]) -> list[str | None]:
 
 # -- the estimate ----------------------------------------------------------------------------------------------------
 
-#: Seconds a check costs beyond its passes' rendering: both render processes started and the scene built (about
-#: 2 s with bpy 5.0.1 here, the two at once), and its looks (about 0.25 s each, some 17 by 46 passes a side).
-CHECK_OVERHEAD = 6.0
-#: Seconds of one sample of one pixel, both sides' passes rendered at once on the two cores: the built-in scenes at
-#: 64x64 and 1 sample took 9-25 ms a pass with bpy 5.0.1 here (median 14 ms).
-SAMPLE_SECONDS = 14e-3 / (64 * 64)
+#: Wall seconds a check costs beyond its passes: both render processes started and the scene built, the two at once,
+#: and its looks. Fitted with the next two on 28 cells of an audit of bpy 5.2.3 here (64x64, 64 passes a side, two
+#: cores shared): wall = 3.4 s + 0.58 x render seconds.
+CHECK_OVERHEAD = 3.5
+#: Render seconds of one sample of one pixel of one side's pass, both sides rendering at once (`check`'s render
+#: seconds count both): the built-in scenes took 4-9e-6 (1 sample a pass), 7e-6 with path guiding at 16, 3e-6 at 32.
+SAMPLE_SECONDS = 6e-6
+#: Wall seconds per render second: the two sides render at once on two cores.
+WALL_SHARE = 0.6
 #: The share of its budget a cell renders, as the estimate expects it (a check stops at `equivalent` from 44 passes
 #: a side, at `biased` at once, at its futility stop, or at the budget).
 EXPECTED_SHARE = 0.75
@@ -447,12 +450,13 @@ class Estimate:
                 f"{fmt.duration(self.at_most)} (each cell rendering its whole budget and confirmed)")  # fmt: skip
 
 
-def cell_seconds(spec: AuditSpec, cell: Cell, pixels: int) -> float:
-    """The most wall seconds a cell's check takes by the estimate's model: its overhead and its budget's passes (or
-    its render seconds: both sides' together, rendering at once)."""
+def cell_seconds(spec: AuditSpec, cell: Cell, pixels: int, share: float = 1.0) -> float:
+    """The wall seconds a cell's check takes by the estimate's model (`share`: of its budget's passes): its overhead
+    and its passes' render seconds (both sides), at most the budget's render seconds."""
+    render = 2 * share * spec.max_passes * cell.change.samples * pixels * SAMPLE_SECONDS
     if spec.max_seconds is not None:
-        return CHECK_OVERHEAD + spec.max_seconds / 2
-    return CHECK_OVERHEAD + spec.max_passes * cell.change.samples * pixels * SAMPLE_SECONDS
+        render = min(render, spec.max_seconds)
+    return CHECK_OVERHEAD + WALL_SHARE * render
 
 
 def estimate(plan: AuditPlan, done: set[str] = frozenset()) -> Estimate:
@@ -461,9 +465,9 @@ def estimate(plan: AuditPlan, done: set[str] = frozenset()) -> Estimate:
     file whose size is not known before it renders)."""
     width, height = plan.spec.resolution or (64, 64)
     todo = [c for c in plan.cells if c.key not in done]
-    each = [cell_seconds(plan.spec, c, width * height) for c in todo]
-    expected = sum(CHECK_OVERHEAD + (s - CHECK_OVERHEAD) * EXPECTED_SHARE for s in each) * (1 + EXPECTED_FINDINGS)
-    return Estimate(expected, 2 * sum(each), len(todo))
+    expected = sum(cell_seconds(plan.spec, c, width * height, EXPECTED_SHARE) for c in todo)
+    at_most = sum(cell_seconds(plan.spec, c, width * height) for c in todo)
+    return Estimate(expected * (1 + EXPECTED_FINDINGS), 2 * at_most, len(todo))
 
 
 # -- an audit file (the suite kind) ---------------------------------------------------------------------------------

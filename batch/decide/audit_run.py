@@ -44,9 +44,10 @@ from .check import CheckRequest, check_job, run_check
 STATE_FILE = "audit.json"
 STATE_VERSION = 1
 
-#: A cell's status: confirmed `biased`, `biased` at first but not on fresh seeds, `equivalent`, neither
-#: (`undecided`), a setting the release lacks, or a cell that could not run.
-STATUSES = ("biased", "unconfirmed", "equivalent", "undecided", "not_applicable", "error")
+#: A cell's status: confirmed `biased`, `biased` at first but not on fresh seeds, `equivalent`, every pass
+#: bit-identical on both sides without the passes to claim `equivalent` yet (`identical`), neither (`undecided`), a
+#: setting the release lacks, or a cell that could not run.
+STATUSES = ("biased", "unconfirmed", "equivalent", "identical", "undecided", "not_applicable", "error")
 
 
 @dataclass
@@ -115,6 +116,7 @@ def check_record(summary: dict, folder: Path, out: Path) -> dict:
         "largest": outcome.get("largest"),
         "most_significant": outcome.get("most_significant"),
         "claim_tile": outcome.get("claim_tile"),
+        "identical": bool(outcome.get("identical")),
         "tolerance": outcome.get("tolerance"),
         "ruled_out": {"tile": bounded[0]["tile"], "bias": bounded[0]["ruled_out"]} if bounded else None,
         "passes": check.get("passes", summary.get("n_test")),
@@ -134,7 +136,9 @@ def status_of(first: dict | None, confirm: dict | None) -> str:
         return "error"
     if first["verdict"] == "biased":
         return "biased" if confirm is not None and confirm["verdict"] == "biased" else "unconfirmed"
-    return "equivalent" if first["verdict"] == "equivalent" else "undecided"
+    if first["verdict"] == "equivalent":
+        return "equivalent"
+    return "identical" if first.get("identical") else "undecided"
 
 
 # -- the checks of a cell --------------------------------------------------------------------------------------------
@@ -151,7 +155,6 @@ def cell_job(plan: AuditPlan, cell: Cell, role: str, folder: Path, resume: bool 
     spec, change, scene = plan.spec, cell.change, cell.scene
     base = UNBIASED_OVERRIDES if role == "explain" else ()
     reference, test = change.sides(base)
-    budget = {"max_passes": spec.max_passes} if spec.max_seconds is None else {"max_seconds": spec.max_seconds}
     request = CheckRequest(
         out=str(folder),
         blend=scene.blend,
@@ -174,16 +177,12 @@ def cell_job(plan: AuditPlan, cell: Cell, role: str, folder: Path, resume: bool 
         resume=resume,
         workers=workers,
         scheduler=scheduler,
-        **budget,
+        max_passes=spec.max_passes,
+        max_seconds=spec.max_seconds,
     )
     job = check_job(request)
-    # The reference side's own overrides (its default, set explicitly); a time budget still renders at most the
-    # budget's passes, so that each role's seeds stay in its own block.
-    return dataclasses.replace(
-        job,
-        reference=job.reference.replace(overrides=reference, seeds=job.reference.seeds[: spec.max_passes]),
-        test=job.test.replace(seeds=job.test.seeds[: spec.max_passes]),
-    )
+    # The reference side's own overrides: its default, set explicitly (``check`` gives its reference none).
+    return dataclasses.replace(job, reference=job.reference.replace(overrides=reference))
 
 
 def check_command(plan: AuditPlan, cell: Cell, role: str, out: Path) -> str:
@@ -205,7 +204,8 @@ def check_command(plan: AuditPlan, cell: Cell, role: str, out: Path) -> str:
             argv += [flag, value]
     argv += ["--alpha", f"{plan.level:.6g}", "--tolerance", "off" if spec.tolerance is None else
              f"{100 * spec.tolerance:g}%"]  # fmt: skip
-    argv += ["--max-seconds", f"{spec.max_seconds:g}"] if spec.max_seconds else ["--max-passes", str(spec.max_passes)]
+    argv += ["--max-passes", str(spec.max_passes)] + (["--max-seconds", f"{spec.max_seconds:g}"] if spec.max_seconds
+                                                       else [])  # fmt: skip
     argv += ["--seed-offset", str(spec.seed_offset + ROLES[role] * spec.max_passes)]
     if role == "confirm":
         argv += ["--pixel-variance", "off", "--lobes", ",".join(LOBES)]
@@ -412,6 +412,13 @@ class Audit:
         except BatchError as exc:
             return {"error": " ".join(str(exc).split())}
         record = found.to_json()
+        record["versions"] = versions = {}
+        for build in builds:
+            path = folder / "renders" / f"{build.label}.npz"
+            with contextlib.suppress(OSError, wc.WelchInputError):
+                versions[build.label] = wc.load_stats(path, pixels=False).info.renderer_version
+        if "current" in versions and record["message"]:  # this process's bpy, by its release
+            record["message"] = record["message"].replace("current", f"current ({versions['current']})")
         for step in record["steps"]:
             step["pair"]["folder"] = os.path.relpath(step["pair"]["folder"], self.out) if step["pair"]["folder"] else ""
         return record
@@ -438,7 +445,10 @@ def cell_sentence(cell: Cell, status: str, first: dict, confirm: dict | None) ->
         return (f"{what}: whole image {whole} (confirmed on fresh seeds: {confirm['passes']} passes, p "
                 f"{fmt.p_value(confirm['p_value'])}; first {passes})")  # fmt: skip
     if status == "unconfirmed":
-        return f"biased on its first seeds ({passes}), not on fresh ones: {confirm['sentence']}"
+        again = f"{confirm['verdict'].replace('_', ' ')}, whole image {fmt.difference(confirm['whole_image'])}"
+        return f"biased on its first seeds ({passes}), not on fresh ones ({confirm['passes']} passes a side: {again})"
+    if status == "identical":
+        return f"every pass identical on both sides ({passes}): the change left them as they were"
     ruled = first.get("ruled_out")
     bound = f"; a bias beyond {100 * ruled['bias']:.2f} % ruled out per {ruled['tile']}x{ruled['tile']} tile" if (
         ruled) else ""  # fmt: skip

@@ -534,13 +534,16 @@ OPTIONS = {
             high=MAX_PASSES,
             metavar="N",
             uses={
-                "check": Use(deferred=True, help="the most passes a side (default {default})"),
+                "check": Use(
+                    deferred=True,
+                    help="the most passes a side (default {default}; with --max-seconds, whichever ends first)",
+                ),
                 "case": Use(64),
                 "addon": _USE,
                 "audit": Use(
-                    64,
-                    "the most passes a side of each check of a cell (its equal budget; with --max-seconds "
-                    "too, whichever ends first)",
+                    128,
+                    "the most passes a side of each check of a cell (with --max-seconds, whichever ends first: "
+                    "every cell has the same budget)",
                 ),
             },
         ),
@@ -563,12 +566,16 @@ OPTIONS = {
             low=0,
             high=MAX_SECONDS,
             metavar="S",
+            off=True,
             uses={
-                "check": Use(help="the most render seconds, both sides together"),
+                "check": Use(
+                    help="the most render seconds, both sides together (with --max-passes, whichever ends first)"
+                ),
                 "case": _USE,
                 "audit": Use(
-                    help="the most render seconds of each check of a cell, both sides together (a budget "
-                    "in time: every cell costs about the same)"
+                    10.0,
+                    "the most render seconds of each check of a cell, both sides together (default {default}; "
+                    "`off`: the passes alone): a cell whose passes render many samples stops at it",
                 ),
             },
         ),

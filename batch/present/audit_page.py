@@ -20,6 +20,7 @@ _CELL = {
     "biased": ("#b00020", "biased"),
     "unconfirmed": ("#a06000", "not confirmed"),
     "equivalent": (_STATUS_COLOURS["passed"], "no difference"),
+    "identical": (_STATUS_COLOURS["passed"], "identical passes"),
     "undecided": ("#a06000", "not decided"),
     "not_applicable": (_STATUS_COLOURS["skipped"], "not applicable"),
     "error": (_STATUS_COLOURS["error"], "error"),
@@ -28,6 +29,7 @@ _CONTROL = {
     "biased": (_STATUS_COLOURS["passed"], "found"),
     "unconfirmed": ("#a06000", "not confirmed"),
     "equivalent": ("#777", "not exercised"),
+    "identical": ("#777", "not exercised"),
     "undecided": ("#777", "not found"),
 }
 
@@ -75,9 +77,11 @@ def write_audit_page(path, plan, summary: dict, results) -> None:
 <p class="muted">A row per setting change (what Cycles documents it to change; the samples per render its passes
 render), a column per scene. <b>no difference</b>: `equivalent`, the claim within the tolerance in every tile of
 the size given, at the audit's level; <b>biased</b>: biased on its first seeds and again on fresh ones with the
-tile sums alone; <b>not confirmed</b>: biased on the first seeds only; <b>not decided</b>: neither within the
-budget (the bias ruled out is given). A control's cell says <b>found</b> where its bias was confirmed, and
-<b>not exercised</b> where the scene shows it to be within the tolerance. Click a cell for its report.</p></section>
+tile sums alone; <b>not confirmed</b>: biased on the first seeds only; <b>identical passes</b>: every pass of the
+budget bit-identical on both sides (the change left them as they were; too few passes to claim `equivalent` at the
+audit's level); <b>not decided</b>: neither within the budget. A control's cell says <b>found</b> where its bias
+was confirmed, and <b>not exercised</b> where the scene shows no effect of it. Click a cell for its
+report.</p></section>
 <section><h2>Level</h2><p id="alpha">{html.escape(summary["alpha_split"])}.</p></section>
 </main></body></html>
 """
