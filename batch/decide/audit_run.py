@@ -505,7 +505,8 @@ def summary_of(plan: AuditPlan, results: list[CellResult], seconds: float | None
         "alpha_split": plan.alpha_text(),
         "budget": plans.budget_text(plan.spec),
         "exit_code": exit_code(plan, results),
-        "seconds": None if seconds is None else round(seconds, 1),
+        "seconds": round(sum(r.seconds for r in results), 1),  # the cells' own, those reused included
+        "wall_seconds": None if seconds is None else round(seconds, 1),  # this run's
         "counts": counts,
         "unfound_controls": unfound_controls(plan, results),
         "findings": [r.cell.key for r in findings],

@@ -573,7 +573,7 @@ OPTIONS = {
                 ),
                 "case": _USE,
                 "audit": Use(
-                    10.0,
+                    20.0,
                     "the most render seconds of each check of a cell, both sides together (default {default}; "
                     "`off`: the passes alone): a cell whose passes render many samples stops at it",
                 ),

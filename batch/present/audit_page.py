@@ -62,9 +62,13 @@ def write_audit_page(path, plan, summary: dict, results) -> None:
     version = release["version"] or release["label"]
     named = "" if summary["audit"] == "cycles" else f" ({summary['audit']})"
     title = f"Audit of Cycles {version}{named}: {headline(summary)}"
-    counts = "".join(f'<span style="color:{_CELL[k][0]}">{v} {_CELL[k][1]}</span>'
-                     for k, v in summary["counts"].items() if v)  # fmt: skip
-    seconds = f" · {fmt.duration(summary['seconds'])}" if summary.get("seconds") is not None else ""
+    counts = dict(summary["counts"])
+    found = sum(r.found for r in results)  # a control's `biased` is the audit working, not a finding
+    counts["biased"] -= found
+    shown = [(_CELL[k][0], f"{v} {_CELL[k][1]}") for k, v in counts.items() if v]
+    shown += [(_CONTROL["biased"][0], f"{found} control{'s' if found != 1 else ''} found")] if found else []
+    counts = "".join(f'<span style="color:{colour}">{html.escape(text)}</span>' for colour, text in shown)
+    seconds = f" · {fmt.duration(summary['seconds'])} in all" if summary.get("seconds") else ""
     page = f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>{html.escape(title)}</title>
 <meta name="viewport" content="width=device-width, initial-scale=1"><style>{_STYLE}{_EXTRA_STYLE}</style></head>
@@ -168,6 +172,10 @@ def _cell(result) -> str:
         body.append(f"<div>{html.escape(_claim(first))}</div>")
     elif shown is not None and shown.get("whole_image") and shown["whole_image"].get("estimate") is not None:
         body.append(f"<div>{html.escape(fmt.difference(shown['whole_image']))}</div>")
+    strongest = (shown or {}).get("most_significant")
+    if result.status == "biased" and strongest and strongest.get("tile"):
+        where = f"{strongest['channel']} of a {strongest['tile']}² tile at {strongest['x']}, {strongest['y']}"
+        body.append(f'<div class="muted">most significant: {html.escape(fmt.difference(strongest))} in {where}</div>')
     if result.status == "undecided" and first and first.get("ruled_out"):
         ruled = first["ruled_out"]
         body.append(f'<div class="muted">±{100 * ruled["bias"]:.2f} % ruled out per {ruled["tile"]}² tile</div>')

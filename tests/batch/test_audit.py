@@ -193,7 +193,7 @@ def test_the_command_that_reproduces_a_confirmation(tmp_path):
     line = check_command(plan, cell, "confirm", tmp_path / "again")
     assert line.startswith("welch-bias check --scene glossy --spp 2 --tile 16 --sampling-pattern TABULATED_SOBOL "
                            "--test-sampling-pattern BLUE_NOISE --alpha 0.000294118 --tolerance 1% --max-passes 40 "
-                           "--max-seconds 10 --seed-offset 40 --pixel-variance off --lobes diffuse,")  # fmt: skip
+                           "--max-seconds 20 --seed-offset 40 --pixel-variance off --lobes diffuse,")  # fmt: skip
 
 
 def record(verdict: str, **extra) -> dict:
