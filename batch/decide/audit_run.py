@@ -381,6 +381,7 @@ class Audit:
         result = CellResult(cell, status, cell_sentence(cell, status, first, confirm), first=first, confirm=confirm)
         if result.finding:
             result.command = check_command(self.plan, cell, "confirm", self.folder(cell) / "again")
+        if result.finding and not cell.change.aa:  # the default against itself: no change to explain
             result.explain = self._explain(cell, where)
             result.bisect = self._bisect(cell)
         return result
