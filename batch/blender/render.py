@@ -211,6 +211,10 @@ def fixed_settings(scene, spp: int, resolution, pattern: str | None) -> list[tup
     ]
 
 
+#: Settings the passes fix for speed only, which an override may turn back: persistent data (a pass with it equals
+#: a fresh render of the same seed without it, tests/batch/test_render.py), so that an audit can compare the two.
+MAY_OVERRIDE = ("render.use_persistent_data",)
+
 #: The option a user should change instead of overriding a setting the job fixes.
 _OPTION_FOR = {
     "cycles.samples": "--spp",
@@ -225,7 +229,8 @@ def check_fixed_settings(scene, spp: int, resolution, overrides: list[dict], pat
     """Raise RenderSetupError if the overrides (as `apply_overrides` returns them) changed a setting the job
     fixes (`pattern`: the sampling pattern the job gave, None where it keeps the scene's): what is rendered must
     be what is recorded."""
-    expected = {path: value for _struct, path, value in fixed_settings(scene, spp, resolution, pattern)}
+    expected = {path: value for _struct, path, value in fixed_settings(scene, spp, resolution, pattern)
+                if path not in MAY_OVERRIDE}  # fmt: skip
     expected["cycles.device"] = scene.cycles.device
     for change in overrides:
         path = change["path"].removeprefix("scene.")

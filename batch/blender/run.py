@@ -142,7 +142,9 @@ def render_run(job: RenderJob, progress: Progress, requests=None) -> wc.TileStat
             from . import render  # imports bpy: a command job renders without it
 
             scene, info = prepare_scene(job, progress.warning)
-            limit_threads(scene)
+            own = [parse_override(o).path.removeprefix("scene.") for o in job.overrides]
+            if not any(path.startswith("render.threads") for path in own):
+                limit_threads(scene)  # a worker's share of the cores, unless the job sets the threads itself
             renderer = render.PassRenderer(scene, lobes=job.lobes)
         with renderer, StopRequest() as stop:
             renderer.stop = stop  # a command's pass ends at once on a stop; a Cycles pass is short

@@ -22,6 +22,7 @@ error, 130 = interrupted (the checkpoint is kept).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import hashlib
 import os
 import sys
@@ -73,6 +74,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_merge(sub)
     _add_suite(sub)
     _add_matrix(sub)
+    _add_audit(sub)
     _add_bpy(sub)
     return parser
 
@@ -100,7 +102,9 @@ def _add_render(sub) -> None:
         "--probe",
         action="store_true",
         help="for programs: render nothing, only open the scene and print what it asks of the passes (its own "
-        "samples and its settings that act only above some samples per render) as one JSON event",
+        "samples and its settings that act only above some samples per render) as one JSON event; with --set, "
+        "--sampling-pattern or a --device other than the CPU, also set the scene up as its passes would be, "
+        "refusing what this build lacks as a render does",
     )
     add_cluster_arguments(r)
     r.add_argument(
@@ -145,7 +149,7 @@ def _add_check(sub) -> None:
         "stop gives up at most 5%% of the power against such a bias)",
     )
     add_options(k, "check", ("alpha",))
-    add_options(k.add_mutually_exclusive_group(), "check", ("max_passes", "max_seconds"))
+    add_options(k, "check", ("max_passes", "max_seconds"))
     add_options(k, "check", ("spp", "tile", "resolution", "device", "sampling_pattern", "lobes"))
     add_options(k, "check", TEST_SIDE, side="test")
     k.add_argument("--unpaired", action="store_true", help="disjoint seeds even on one build (an A/A check)")
@@ -311,6 +315,55 @@ def _add_matrix(sub) -> None:
         m.add_argument("--out", required=True, metavar="DIR", help="folder for the renders, reports and index.html")
 
 
+def _add_audit(sub) -> None:
+    """``audit``: every setting documented to change only the noise against its default, on every scene."""
+    a = sub.add_parser(
+        "audit",
+        help="audit a Cycles release: every setting documented to change only the noise against its default, on "
+        "every scene, each difference confirmed on fresh seeds and explained",
+        description="Audit one release (this bpy, --release VERSION, --python or --blender): every change of the "
+        "shipped list (batch/decide/audits/cycles.toml: path guiding, the light tree, the sampling pattern, "
+        "scrambling, BVH options, threads, persistent data, tiling, the light threshold, the GPU; and, as "
+        "controls the audit must find, the indirect clamp, Filter Glossy and the caustics switches) and of "
+        "--changes FILE against its default, on every scene (the built-in ones, or the .blend files given), and "
+        "the default against itself on disjoint seeds. Each cell is a `check` with an equal budget; alpha is "
+        "split evenly over the cells (Bonferroni), each cell's first check and its confirmation on fresh seeds "
+        "(tile sums alone) both at alpha / cells, and a cell is reported biased only where both reject. A "
+        "confirmed difference of a noise-only setting is explained: the light component that carries it, the "
+        "change with the biased-by-design settings off (clamps 0, Filter Glossy 0, caustics on, light threshold "
+        "0), and with --releases the first release that shows it. Says up front how long it expects to take, "
+        "prints a line per cell, writes summary.json, junit.xml and index.html (the audit page); --resume reuses "
+        "every cell already decided.",
+        epilog="Exit codes: 0 no noise-only setting is confirmed biased, 1 one is (the default against itself "
+        "included), 2 a usage error or a cell that could not run, 3 a control was found in no scene (the audit "
+        "could not have found a bias).",
+    )
+    a.add_argument("blends", nargs="*", metavar="SCENE.blend", help="scene files to audit")
+    a.add_argument("--scene", dest="scenes", action="append", default=[], metavar="NAME",
+                   help="a built-in scene to audit, repeatable; `all` for every one (default: every one where no "
+                   "scene file is given)")  # fmt: skip
+    a.add_argument("--changes", dest="changes_file", metavar="FILE", help="a file of your own [[change]] tables "
+                   "(the form of batch/decide/audits/cycles.toml), audited beside the shipped ones")  # fmt: skip
+    a.add_argument("--only", nargs="+", metavar="CHANGE", help="only these changes, by name (the default against "
+                   "itself is always audited)")  # fmt: skip
+    build = a.add_mutually_exclusive_group()
+    add_options(build, "audit", ("blender", "python"))
+    build.add_argument("--release", metavar="VERSION", help="audit this bpy release, e.g. 5.2.3 (its environment "
+                       "made once and cached, as `bpy VERSION` does)")  # fmt: skip
+    a.add_argument("--releases", nargs="+", metavar="BUILD", help="bisect each confirmed difference over these "
+                   "builds, oldest first (as bisect --builds: current, a release such as 4.5.4, or a path); the "
+                   "audited release is the last")  # fmt: skip
+    a.add_argument("--bisect-passes", type=jobs.positive_int, default=32, metavar="N",
+                   help="passes per release and side of a bisect (default 32)")  # fmt: skip
+    add_options(a, "audit", ("resolution", "tile", "max_passes", "max_seconds", "alpha", "tolerance", "seed_offset"))
+    add_cluster_arguments(a)
+    a.add_argument("--plan", action="store_true", help="say what the release supports, the cells, the level and "
+                   "the time expected, and render nothing")  # fmt: skip
+    a.add_argument("--resume", action="store_true", help="continue the audit in --out, reusing every decided cell")
+    a.add_argument("--out", required=True, metavar="DIR", help="folder for the cells' checks, summary.json, "
+                   "junit.xml and index.html")  # fmt: skip
+
+
 def _add_bpy(sub) -> None:
     """``bpy`` and ``demo``."""
     r = sub.add_parser(
@@ -461,6 +514,12 @@ def _probe(job: jobs.RenderJob, progress) -> None:
         from ..jobs.samples import scene_samples
 
         found = scene_samples(open_scene(job.blend, job.scene, job.blend_scene))
+        if job.overrides or job.sampling_pattern or job.device != "CPU":
+            # The settings it was given too, set up as its passes would be: a setting, sampling pattern or device
+            # this build lacks is refused now, as a render would refuse it (an audit learns what a release has).
+            from ..blender.run import prepare_scene
+
+            prepare_scene(job)
     progress.emit(Probed(samples=found.samples, settings=found.settings))
 
 
@@ -599,9 +658,12 @@ def cmd_lint(args) -> int:
 def cmd_suite(args) -> int:
     from pathlib import Path
 
+    from ..decide import audit as audits
     from ..decide import suite as suites
     from ..present.progress import Progress
 
+    if audits.is_audit_file(suites.suite_path(args.suite_file)):
+        return _suite_audit(args)
     suite = suites.load_suite(args.suite_file)
     cases = suite.select(args.filter)
     refs = Path(args.refs) if args.refs else suites.default_refs(suite)
@@ -645,6 +707,25 @@ def cmd_suite(args) -> int:
     )
     say(f"dashboard: {out / 'index.html'}")
     return summary["exit_code"]
+
+
+def _suite_audit(args) -> int:
+    """``suite run`` of an audit file (an ``[audit]`` table): the audit it describes, with the release given."""
+    from pathlib import Path
+
+    from ..decide.audit import load_audit_file
+    from ..decide.matrix import Build, build_of
+
+    if args.suite_command == "bless":
+        raise BatchError(f"{args.suite_file} is an audit: it has no references to bless (suite run runs it)")
+    given = [flag for flag, value in (("--refs", args.refs), ("--filter", args.filter), ("--device", args.device),
+                                      ("--set", args.overrides)) if value]  # fmt: skip
+    if given:
+        raise BatchError(f"{given[0]} does not apply to an audit file ({args.suite_file}): its cells are its own")
+    found = load_audit_file(args.suite_file)
+    build = build_of(args.python or args.blender) if (args.python or args.blender) else Build("current")
+    spec = dataclasses.replace(found.spec, build=build, seed_offset=args.seed_offset)
+    return _run_audit(spec, Path(args.out), args.resume, (args.workers, args.scheduler))
 
 
 def cmd_matrix(args) -> int:
@@ -691,28 +772,65 @@ def cmd_matrix(args) -> int:
         changes["overrides"] = job.overrides + tuple(args.test_overrides)
     if args.test_sampling_pattern:
         changes["sampling_pattern"] = args.test_sampling_pattern
-    within = bool(changes)
-    paths: dict[str, Path] = {}
-
-    def shows(label: str, level: float) -> matrix.Pair:
-        build = builds[labels.index(label)]
-        first = [] if within or label == labels[0] else [builds[0]]
-        blocks = {b.label: k for k, b in enumerate(builds)}
-        paths.update(matrix.render_builds(job, [build, *first], args.passes, out / "renders", progress, say,
-                                          changes if within else None, blocks))  # fmt: skip
-        ref, test = (f"{label}", f"{label}.test") if within else (labels[0], label)
-        if not within and label == labels[0]:  # the first against itself: its two halves
-            return matrix.Pair(label, label, "no_evidence", "the first build is the reference", None, None, "")
-        pair = matrix.compare_pair(paths[ref], paths[test], out / "steps" / label, level, args.tolerance, (ref, test))
-        say(f"{label}: {pair.sentence}")
-        return pair
-
-    found = matrix.bisect(labels, shows, args.alpha)
+    found = matrix.run_bisect(job, builds, args.passes, out, args.alpha, args.tolerance, progress, say, changes or None)
     matrix.write_json(out / "bisect.json", {"builds": labels, **found.to_json()})
     write_bisect_page(out / "index.html", f"Bisect: {scene}", found)
     say(f"bisect: {found.message}")
     say(f"bisect: {out / 'index.html'}")
     return Exit.OK if found.first is not None else Exit.INCONCLUSIVE
+
+
+def cmd_audit(args) -> int:
+    from pathlib import Path
+
+    from ..decide import audit
+    from ..decide.matrix import Build, build_of
+
+    changes = list(audit.load_changes(audit.BUILTIN_CHANGES))
+    if args.changes_file:
+        changes += audit.load_changes(args.changes_file, tuple(c.name for c in changes))
+    if args.only:
+        names = {c.name for c in changes} | {audit.AA.name}
+        unknown = [n for n in args.only if n not in names]
+        if unknown:
+            raise BatchError(f"--only {unknown[0]}: no such change (the changes are {', '.join(sorted(names))})")
+        changes = [c for c in changes if c.name in args.only]
+    scenes = audit.scenes_of(args.scenes or ([] if args.blends else ["all"]), args.blends)
+    if args.release:
+        build = build_of(args.release)
+    elif args.python or args.blender:
+        build = build_of(args.python or args.blender)
+    else:
+        build = Build("current")
+    releases = tuple(build_of(spec) for spec in args.releases or ())
+    spec = audit.AuditSpec(name="cycles", scenes=scenes, changes=(audit.AA, *changes), build=build,
+                           max_passes=args.max_passes, max_seconds=args.max_seconds, alpha=args.alpha,
+                           tolerance=args.tolerance, resolution=tuple(args.resolution) if args.resolution else None,
+                           tile=args.tile, seed_offset=args.seed_offset, releases=releases,
+                           bisect_passes=args.bisect_passes)  # fmt: skip
+    return _run_audit(spec, Path(args.out), args.resume, (args.workers, args.scheduler), args.plan)
+
+
+def _run_audit(spec, out, resume: bool, cluster, plan_only: bool = False) -> int:
+    """An audit (``audit``, or ``suite run`` of an audit file): planned, said, run, its outputs written."""
+    from ..decide.audit import estimate
+    from ..decide.audit_run import prepare, run_audit
+
+    say = lambda line: print(line, flush=True)  # noqa: E731
+    plan, support = prepare(spec, out, resume, say)
+    if plan_only:
+        for cell, why in plan.not_applicable[:: len(spec.scenes)]:
+            say(f"audit: {cell.change.name} is not applicable: {why}")
+        say(f"audit: {plan.k} cells; {plan.alpha_text()}")
+        say(f"audit: {estimate(plan).text()}")
+        return Exit.OK
+    _results, summary = run_audit(plan, out, support, resume, cluster, say)
+    counts = ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in summary["counts"].items() if v)
+    say(f"audit: {counts}; findings: {', '.join(summary['findings']) or 'none'}"
+        + (f"; controls found nowhere: {', '.join(summary['unfound_controls'])}" if summary["unfound_controls"]
+           else ""))  # fmt: skip
+    say(f"audit: {out / 'index.html'}")
+    return summary["exit_code"]
 
 
 def cmd_bpy(args) -> int:
@@ -754,6 +872,7 @@ COMMANDS = {
     "suite": cmd_suite,
     "matrix": cmd_matrix,
     "bisect": cmd_matrix,
+    "audit": cmd_audit,
     "bpy": cmd_bpy,
     "demo": cmd_demo,
 }

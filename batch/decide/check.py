@@ -664,8 +664,6 @@ def check_job(request: CheckRequest, probe=None) -> CheckJob:
     reads what scene files ask of the passes for ``--spp auto`` (default `batch.jobs.side.probe_scenes`: a process
     of each side's build opens its file; the add-on reads its own scenes)."""
     args = request
-    if args.max_passes is not None and args.max_seconds is not None:
-        raise BatchError("give --max-passes or --max-seconds, not both")
     if args.blend is not None and args.scene is not None:
         raise BatchError(f"give a .blend file or a built-in scene, not both ({args.blend}, {args.scene!r})")
     if args.test_command and not args.pass_command:
@@ -676,7 +674,9 @@ def check_job(request: CheckRequest, probe=None) -> CheckJob:
         if path is not None and not Path(path).is_file():
             raise BatchError(f"{option} {path}: no such file")
     max_passes = None if args.max_seconds is not None else (args.max_passes or DEFAULT_MAX_PASSES)
-    count = max_passes or MAX_SEEDS_FOR_SECONDS
+    # A time budget renders at most --max-passes where given too (whichever ends first): its pass budget, fixed from
+    # the speed of the first chunk, is at most the seeds a side has.
+    count = args.max_passes or max_passes or MAX_SEEDS_FOR_SECONDS
     if (args.blender and args.python) or (args.test_blender and args.test_python):
         raise BatchError("give a side's build as a Blender binary or as a Python with bpy, not both (--blender or "
                          "--python; --test-blender or --test-python)")  # fmt: skip

@@ -193,6 +193,31 @@ def bisect(labels: list[str], shows: Callable[[str, float], Pair], alpha: float)
     )
 
 
+def run_bisect(job: RenderJob, builds: list[Build], passes: int, out: Path, alpha: float, tolerance: float | None,
+               progress_factory, say=print, changes: dict | None = None) -> Bisection:  # fmt: skip
+    """Bisect `builds` (oldest first) for the first that shows a difference: with `changes` (fields of `job`: the
+    change whose effect is bisected) within each build, `job` against `job` with the changes on the same seeds;
+    without, each build against the first. Renders into ``out/renders``, each step's comparison into
+    ``out/steps/<build>``."""
+    labels = [b.label for b in builds]
+    paths: dict[str, Path] = {}
+    blocks = {b.label: k for k, b in enumerate(builds)}
+
+    def shows(label: str, level: float) -> Pair:
+        build = builds[labels.index(label)]
+        first = [] if changes or label == labels[0] else [builds[0]]
+        paths.update(render_builds(job, [build, *first], passes, out / "renders", progress_factory, say, changes,
+                                   blocks))  # fmt: skip
+        ref, test = (label, f"{label}.test") if changes else (labels[0], label)
+        if not changes and label == labels[0]:  # the first against itself: nothing to compare
+            return Pair(label, label, "no_evidence", "the first build is the reference", None, None, "")
+        pair = compare_pair(paths[ref], paths[test], out / "steps" / label, level, tolerance, (ref, test))
+        say(f"{label}: {pair.sentence}")
+        return pair
+
+    return bisect(labels, shows, alpha)
+
+
 def write_json(path: Path, data) -> None:
     text = json.dumps(data, indent=2, allow_nan=False, default=str)
     wc.formats.atomic_write(path, lambda f: f.write(text.encode()))

@@ -307,6 +307,7 @@ OPTIONS = {
                 ),
                 "matrix": Use(help="tile edge in pixels"),
                 "bisect": Use(help="tile edge in pixels"),
+                "audit": Use(help="finest tile edge in pixels of every cell's check"),
             },
         ),
         Option(
@@ -343,7 +344,10 @@ OPTIONS = {
             high=MAX_RESOLUTION,
             metavar="W H",
             uses=dict.fromkeys(_JOB, _USE)
-            | {"render": Use(help=f"override the resolution (at most {MAX_RESOLUTION})")},
+            | {
+                "render": Use(help=f"override the resolution (at most {MAX_RESOLUTION})"),
+                "audit": Use(help="every scene at this resolution (width height; default: each scene's own)"),
+            },
         ),
         Option(
             "device",
@@ -491,6 +495,7 @@ OPTIONS = {
                 **dict.fromkeys(
                     ("suite bless", "suite run"), Use(help="render with this Blender executable instead of bpy")
                 ),
+                "audit": Use(help="audit the release of this Blender executable (3.4 or later) instead of bpy"),
             },
         ),
         Option(
@@ -512,6 +517,10 @@ OPTIONS = {
                 **dict.fromkeys(
                     ("suite bless", "suite run"), Use(help="render with this Python's bpy module (another release)")
                 ),
+                "audit": Use(
+                    help="audit the release of this Python's bpy module (python -m batch bpy VERSION makes "
+                    "one; --release VERSION does it for you)"
+                ),
             },
         ),
         Option(
@@ -525,9 +534,17 @@ OPTIONS = {
             high=MAX_PASSES,
             metavar="N",
             uses={
-                "check": Use(deferred=True, help="the most passes a side (default {default})"),
+                "check": Use(
+                    deferred=True,
+                    help="the most passes a side (default {default}; with --max-seconds, whichever ends first)",
+                ),
                 "case": Use(64),
                 "addon": _USE,
+                "audit": Use(
+                    128,
+                    "the most passes a side of each check of a cell (with --max-seconds, whichever ends first: "
+                    "every cell has the same budget)",
+                ),
             },
         ),
         Option(
@@ -549,7 +566,18 @@ OPTIONS = {
             low=0,
             high=MAX_SECONDS,
             metavar="S",
-            uses={"check": Use(help="the most render seconds, both sides together"), "case": _USE},
+            off=True,
+            uses={
+                "check": Use(
+                    help="the most render seconds, both sides together (with --max-passes, whichever ends first)"
+                ),
+                "case": _USE,
+                "audit": Use(
+                    20.0,
+                    "the most render seconds of each check of a cell, both sides together (default {default}; "
+                    "`off`: the passes alone): a cell whose passes render many samples stops at it",
+                ),
+            },
         ),
         Option(
             "tolerance",
@@ -581,6 +609,10 @@ OPTIONS = {
                 "case": Use(None),  # None: the suite's
                 "suite": _USE,  # the suite file's [suite] tolerance
                 "addon": _USE,
+                "audit": Use(
+                    help="a cell is `equivalent` once every tile of its claim's size is bounded within it "
+                    "(default {default}; `off`: a cell stops only at `biased`)"
+                ),
             },
         ),
         Option(
@@ -615,6 +647,10 @@ OPTIONS = {
                     "answer; a nightly run can pass a new N for new passes)"
                 ),
                 "addon": _USE,
+                "audit": Use(
+                    help="the first seed of every cell (each check of a cell renders its own block of the "
+                    "budget's seeds after it): another N, another independent audit"
+                ),
             },
         ),
         Option(
@@ -634,6 +670,7 @@ OPTIONS = {
                 "bisect": _USE,
                 "suite": _USE,  # the suite file's [suite] alpha
                 "addon": _USE,
+                "audit": Use(help="the false-positive rate of the whole audit, split evenly over its cells"),
             },
         ),
     )

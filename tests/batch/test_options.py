@@ -27,13 +27,15 @@ ARGV = {
     "suite run": ["suite", "run", "builtin", "--out", "x"],
     "matrix": ["matrix", "--builds", "current", "--out", "x"],
     "bisect": ["bisect", "--builds", "current", "--out", "x"],
+    "audit": ["audit", "--out", "x"],
     "bpy": ["bpy"],
     "demo": ["demo"],
 }
 #: The places that are not commands: a suite file's case and [suite] table, the add-on's panel.
 NOT_COMMANDS = {"case", "suite", "addon"}
-#: Flags of a declared option's name that are another option: demo's --resolution is one side of a square image.
-OTHER_OPTIONS = {("demo", "--resolution")}
+#: Flags of a declared option's name that are another option: demo's --resolution is one side of a square image,
+#: audit's --scene is repeatable (the built-in scenes to audit).
+OTHER_OPTIONS = {("demo", "--resolution"), ("audit", "--scene")}
 
 USES = [(dest, place) for dest, o in OPTIONS.items() for place in o.uses if place not in NOT_COMMANDS]
 

@@ -72,3 +72,55 @@ def test_a_bad_suite_file_is_one_collection_error(project):
     assert done.returncode == 2  # pytest: errors during collection
     assert "welch_bad.toml" in done.stdout and "no_such_scene" in done.stdout
     assert "Traceback" not in done.stdout
+
+
+AUDIT = """
+[audit]
+name = "smoke"
+scenes = ["corner"]
+changes = "none"
+resolution = [32, 32]
+tile = 8
+passes = 24
+
+[[change]]
+name = "tight_clamp"
+setting = "cycles.sample_clamp_indirect"
+reference = ["cycles.sample_clamp_indirect=0"]
+test = ["cycles.sample_clamp_indirect=0.05"]
+documented = "bias"
+samples = 1
+why = "a tight indirect clamp: a control the audit must find"
+
+[[change]]
+name = "planted"
+setting = "cycles.sample_clamp_direct"
+reference = ["cycles.sample_clamp_direct=0"]
+test = ["cycles.sample_clamp_direct=0.05"]
+documented = "noise"
+samples = 1
+why = "a direct clamp said to change only the noise: it must fail"
+"""
+
+
+def test_an_audit_file_is_a_test_per_cell_and_per_control(tmp_path):
+    skip_unless_plugin_installed()
+    pytest.importorskip("bpy")
+    (tmp_path / "welch_audit.toml").write_text(AUDIT)
+    listed = pytest_in(tmp_path, "--collect-only", "-q")
+    assert [line for line in listed.stdout.splitlines() if "::" in line] == [
+        "welch_audit.toml::default[corner]",
+        "welch_audit.toml::tight_clamp[corner]",
+        "welch_audit.toml::tight_clamp[found]",
+        "welch_audit.toml::planted[corner]",
+    ]
+    done = pytest_in(tmp_path, "--welch-out", tmp_path / "out", "--junitxml", "j.xml", timeout=900)
+    assert done.returncode == 1, done.stdout[-3000:]
+    for passed in ("default[corner]", "tight_clamp[corner]", "tight_clamp[found]"):
+        assert f"PASSED welch_audit.toml::{passed}" in done.stdout
+    line = next(x for x in done.stdout.splitlines() if x.startswith("planted documented to change only the noise"))
+    assert ": biased: whole image -" in line and "(report: " in line
+    summary = tmp_path / "out" / "audit-smoke" / "summary.json"
+    assert summary.is_file() and (summary.parent / "index.html").is_file()
+    again = pytest_in(tmp_path, "--welch-out", tmp_path / "out", "-k", "tight_clamp")  # decided cells reused
+    assert again.returncode == 0 and "2 passed" in again.stdout

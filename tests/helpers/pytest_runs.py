@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from importlib import metadata
+from pathlib import Path
 
 import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def skip_unless_plugin_installed():
@@ -15,7 +19,9 @@ def skip_unless_plugin_installed():
         pytest.skip("the welch-bias package is not installed (./dev installs it): its pytest11 entry point is missing")
 
 
-def pytest_in(folder, *args) -> subprocess.CompletedProcess:
-    """pytest in `folder`, its temporary files (the reports) inside it: not among this run's, which it would prune."""
+def pytest_in(folder, *args, timeout: float = 600) -> subprocess.CompletedProcess:
+    """pytest in `folder`, its temporary files (the reports) inside it: not among this run's, which it would prune.
+    The plugin is this tree's (first on PYTHONPATH), whichever checkout the package was installed from."""
     argv = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-rA", "--basetemp", str(folder / "tmp")]
-    return subprocess.run([*argv, *args], cwd=folder, capture_output=True, text=True, timeout=600)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
+    return subprocess.run([*argv, *args], cwd=folder, capture_output=True, text=True, timeout=timeout, env=env)
