@@ -82,9 +82,9 @@ def finer_needs(outcome: dict[str, Any], tile: int) -> str | None:
 
 
 def _tolerance(outcome: dict[str, Any]) -> str:
-    """'1.00 %', or with the digits a small tolerance needs ('0.0010 %', never '0.00 %')."""
+    """'1.00 %', or with the digits a small tolerance needs ('0.001 %', never '0.00 %')."""
     tolerance = outcome["tolerance"]
-    return fmt.magnitude(tolerance, max(2, 1 - math.floor(math.log10(100 * tolerance))))
+    return fmt.magnitude(tolerance, max(2, -math.floor(math.log10(100 * tolerance))))
 
 
 def _identical_share(outcome: dict[str, Any]) -> str:
