@@ -1,7 +1,9 @@
-"""Run the batch tool inside Blender; the tool's arguments follow ``--``:
+"""Run the batch tool inside Blender, or in another environment's Python with bpy; the tool's arguments follow
+``--``:
 
     blender -b SCENE.blend --python-exit-code 4 --python batch/blender_entry.py -- render --seeds 0:64 --spp 1 \
         --out ref.npz
+    /opt/bpy-4.5/bin/python batch/blender_entry.py -- render --scene corner --seeds 0:64 --spp 1 --out ref.npz
 
 The tool's own packages, ``batch`` and ``welch_core``, import as top-level packages from the folder that holds
 them (the repository, the installed extension, or an installed tool's site-packages), and nothing else of that
@@ -21,6 +23,11 @@ import sys
 #: The folder that holds the tool's packages, and the packages imported from it (only these).
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PACKAGES = ("batch", "welch_core")
+
+# Run as a plain script (``python batch/blender_entry.py``), Python puts the script's folder first on sys.path,
+# which would make batch's modules top-level names: it goes (Blender puts nothing there).
+if sys.path and sys.path[0] and os.path.abspath(sys.path[0]) == os.path.join(ROOT, "batch"):
+    del sys.path[0]
 
 
 class ToolPackages:
@@ -49,17 +56,20 @@ def missing_module(exc: BaseException) -> str | None:
 
 def this_blender() -> str:
     """This Blender and its Python, for a message: ``Blender 5.2.2 LTS (/usr/bin/blender) runs Python 3.14.1
-    (/usr/bin/python3.14)``. The Python is named by its executable where that lies in its prefix, else by its
-    prefix (Debian's Blender 3.4 reports whichever python3.11 is first on PATH)."""
+    (/usr/bin/python3.14)``, or a Python with the bpy module (``Python 3.13.0 (PATH) with bpy 5.2.3 LTS``). The
+    Python is named by its executable where that lies in its prefix, else by its prefix (Debian's Blender 3.4
+    reports whichever python3.11 is first on PATH)."""
+    inside = bool(sys.executable) and os.path.abspath(sys.executable).startswith(os.path.abspath(sys.prefix) + os.sep)
+    python = f"Python {sys.version.split()[0]} ({sys.executable if inside else f'in {sys.prefix}'})"
     try:
         import bpy
 
-        blender = f"Blender {bpy.app.version_string} ({bpy.app.binary_path})"
+        version, binary = bpy.app.version_string, bpy.app.binary_path
     except Exception:
-        blender = "this Blender"
-    inside = bool(sys.executable) and os.path.abspath(sys.executable).startswith(os.path.abspath(sys.prefix) + os.sep)
-    where = sys.executable if inside else f"in {sys.prefix}"
-    return f"{blender} runs Python {sys.version.split()[0]} ({where})"
+        return f"this Blender runs {python}"
+    if not binary:  # the bpy module in a Python of its own
+        return f"{python} with bpy {version}"
+    return f"Blender {version} ({binary}) runs {python}"
 
 
 def cannot_start(message: str, argv: list[str]) -> None:

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 import welch_core as wc
+from batch.jobs import releases
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The environment ./dev test makes for another Python (the function other_python there).
@@ -112,6 +113,21 @@ def test_an_installed_tool_drives_a_blender_of_another_python(installed, blender
     done = installed_check(installed, blender52, tmp_path)
     assert done.returncode in (0, 3), done.stdout[-2000:] + done.stderr[-2000:]
     assert_rendered_by(tmp_path / "check", "5.2.2")
+
+
+@pytest.mark.slow
+def test_an_installed_tool_renders_with_the_bpy_module_of_another_python(installed, tmp_path):
+    """`--python` with the bpy 5.2.3 environment (Python 3.13, its own numpy) from the tool in a Python 3.11 venv:
+    the other Python imports the tool's packages and nothing else of the venv."""
+    module = releases.python_of(releases.cache_folder() / "5.2.3")
+    if not module.exists():
+        pytest.skip(f"no bpy 5.2.3 environment in {releases.cache_folder()} (./dev test makes it)")
+    done = subprocess.run([str(installed), "render", "--scene", "corner", "--resolution", "32", "32", "--seeds", "0:2",
+                           "--spp", "1", "--python", str(module), "--out", "r.npz"], capture_output=True, text=True,
+                          cwd=tmp_path, timeout=600)  # fmt: skip
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+    run = wc.load_stats(tmp_path / "r.npz", pixels=False)
+    assert run.n == 2 and run.info.renderer_version.startswith("5.2.3"), run.info.renderer_version
 
 
 @pytest.fixture(scope="module")

@@ -1,5 +1,6 @@
-"""Run a render job in another process: this Python (``python -m batch render``) or any Blender binary
-(``blender -b ... --python batch/blender_entry.py -- render ...``), built from the job contract, with its
+"""Run a render job in another process: this Python (``python -m batch render``), any Blender binary
+(``blender -b ... --python batch/blender_entry.py -- render ...``) or another environment's Python with bpy
+(``python batch/blender_entry.py -- render ...``), built from the job contract, with its
 progress events read back as they come.
 
 The driver of a render side (`batch.jobs.side`) starts its processes here. Nothing here imports bpy.
@@ -85,8 +86,9 @@ def job_command(
     ``--probe``: no pass, only what its scene asks of the passes, `protocol.Probed`).
 
     With ``job.blender``: that Blender opens the .blend (or starts from factory settings for a built-in scene)
-    and runs the entry script with the job after ``--``. Without: ``python -m batch render`` with `python`, the
-    tool's folder and `python_paths` (where extra packages live) on ``PYTHONPATH``.
+    and runs the entry script with the job after ``--``; with ``job.python``, that Python runs the entry script the
+    same way. Without either: ``python -m batch render`` with `python`, the tool's folder and `python_paths`
+    (where extra packages live) on ``PYTHONPATH``.
     """
     env = dict(os.environ if base_env is None else base_env)
     env["PYTHONUNBUFFERED"] = "1"  # progress lines must arrive as they are printed, not when a buffer fills
@@ -102,10 +104,12 @@ def job_command(
         argv += ["--python", str(ENTRY_SCRIPT), "--", "render", *child.replace(blend=None).to_argv(), *mode]
         return Command(argv, env)
     if job.python:
-        # Another environment's Python: the tool's code reaches it on PYTHONPATH, and nothing of this one's.
-        env.pop("PYTHONHOME", None)
-        env["PYTHONPATH"] = str(ROOT)
-        return Command([job.python, "-m", "batch", "render", *job.replace(python=None).to_argv(), *mode], env)
+        # Another environment's Python runs the entry script as a Blender does: the tool's own packages reach it,
+        # nothing else of this one's (installed, ROOT is a site-packages whose numpy is built for this Python).
+        for name in ("PYTHONPATH", "PYTHONHOME"):
+            env.pop(name, None)
+        argv = [job.python, str(ENTRY_SCRIPT), "--", "render", *job.replace(python=None).to_argv(), *mode]
+        return Command(argv, env)
     if python == sys.executable:
         require_bpy(job)
     paths = [str(ROOT), *python_paths, *filter(None, env.get("PYTHONPATH", "").split(os.pathsep))]
