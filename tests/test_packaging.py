@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import welch_core as wc
-from batch.jobs import releases
+from batch.jobs import launch, releases
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The environment ./dev test makes for another Python (the function other_python there).
@@ -53,6 +53,8 @@ def test_the_wheel_holds_the_tools_packages_and_the_command_and_nothing_else(whe
     core = [r for r in requires if "extra ==" not in r]
     assert not any("bpy" in r for r in core), core  # bpy is the extra `cycles`
     assert any("bpy==5.0.1" in r and "3.11" in r for r in requires) and any("bpy==5.2.3" in r for r in requires)
+    for (major, minor), release in launch.BPY_RELEASES.items():  # what a render without bpy advises installing
+        assert any(f"bpy=={release}" in r and f'"{major}.{minor}"' in r for r in requires), (release, requires)
 
 
 @pytest.fixture(scope="module")
@@ -83,13 +85,14 @@ def test_without_bpy_compare_works_and_a_cycles_render_says_what_to_install(inst
     help_text = subprocess.run([str(command), "--help"], capture_output=True, text=True).stdout
     assert help_text.startswith("usage: welch-bias ")
     for args in (["render", "--scene", "corner", "--seeds", "0:2", "--spp", "1", "--out", "r.npz"],
-                 ["check", "--scene", "corner", "--unpaired", "--out", "c"]):  # fmt: skip
+                 ["check", "--scene", "corner", "--unpaired", "--out", "c"],
+                 ["suite", "run", "builtin", "--out", "s"]):  # fmt: skip
         done = subprocess.run([str(command), *args], capture_output=True, text=True, cwd=tmp_path)
         assert done.returncode == 2, done.stdout + done.stderr
         assert done.stderr.strip().splitlines() == [
-            "error: rendering with Cycles needs the bpy module, which this Python lacks: install it with pip install "
-            "'welch-bias[cycles]' (bpy 5.0.1 runs on Python 3.11, bpy 5.2.3 on 3.13), or render with --blender PATH "
-            "(a Blender binary) or --python PATH (a Python with bpy)"
+            "error: rendering with Cycles needs the bpy module, which this Python 3.11 lacks: install bpy 5.0.1 with "
+            f"{command.parent / 'python'} -m pip install bpy==5.0.1 (from a checkout of welch-bias: pip install "
+            "'.[cycles]'), or render with --blender PATH (a Blender binary) or --python PATH (a Python with bpy)"
         ]
 
 
