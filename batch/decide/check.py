@@ -137,11 +137,14 @@ class Check:
 
         def side(name: str, side_job: RenderJob) -> Side:
             # Each side's own events (its passes): to `side_progress(name)` where given (the Blender add-on),
-            # else to a live line of its own on a terminal.
+            # else to a live line of its own on a terminal, or to a log's plain lines (its passes at most one
+            # line every few seconds, and a line that often while a pass takes long); none for programs.
             if side_progress is not None:
                 live = side_progress(name)
+            elif getattr(progress, "json_lines", False):
+                live = None
             else:
-                live = Progress(len(side_job.seeds), label=name, live=True) if progress.live else None
+                live = Progress(len(side_job.seeds), label=name, live=progress.live, brief=True)
             if cluster is not None:
                 return ClusterSide(name, side_job, cluster, live, warn=progress.warning)
             return Side(name, side_job, live, warn=progress.warning, env=env)
