@@ -145,8 +145,9 @@ class Progress:
                 if self._bar is not None:
                     self._bar.update(done - self._bar.n)
             case protocol.Looked(verdict=verdict):
-                if self._bar is None:
-                    self._bar = tqdm(desc=self.label, unit="look", file=sys.stderr, dynamic_ncols=True, leave=True)
+                if self._bar is None:  # a count of looks and the time, no rate: looks come at the renders' pace
+                    self._bar = tqdm(desc=self.label, file=sys.stderr, dynamic_ncols=True, leave=True,
+                                     bar_format="{desc}: look {n_fmt} after {elapsed}{postfix}")  # fmt: skip
                 self._bar.update(1)
                 self._bar.set_postfix_str(self.describe(event).partition(": ")[2], refresh=True)
                 if verdict is not None:
@@ -168,7 +169,7 @@ class Progress:
         label = self.label
         match event:
             case protocol.Started(total=total, todo=todo, out=out):
-                return f"{label}: {todo} of {total} passes to render into {out}"
+                return f"{label}: {todo} of {fmt.count(total, 'pass')} to render into {out}"
             case protocol.PassDone(done=done, total=total, seed=seed, seconds=seconds, eta=eta):
                 return f"{label}: pass {done}/{total} (seed {seed}) {seconds:.2f} s, ETA {fmt.duration(eta)}"
             case protocol.Warned(message=message):
@@ -178,12 +179,13 @@ class Progress:
             case protocol.Looked(passes=passes, p_value=p, threshold=threshold, ruled_out=bound, verdict=verdict):
                 evidence = f"smallest p {fmt.p_value(p)} (stops at {fmt.p_value(threshold)})"
                 bias = "no bound yet" if bound is None else f"a bias beyond {fmt.percent(bound).lstrip('+')} ruled out"
-                state = verdict if verdict is not None else f"{event.left} looks left"
-                return f"{label}: {passes} passes a side, {fmt.duration(event.seconds)}: {evidence}; {bias}; {state}"
+                state = verdict if verdict is not None else f"{fmt.count(event.left, 'look')} left"
+                rendered = f"rendering {fmt.duration(event.seconds)} (sides summed)"
+                return f"{label}: {fmt.count(passes, 'pass')} a side, {rendered}: {evidence}; {bias}; {state}"
             case protocol.Saved(out=out, passes=passes):
-                return f"{label}: saved {passes} passes in {out}"
+                return f"{label}: saved {fmt.count(passes, 'pass')} in {out}"
             case protocol.Finished(out=out, passes=passes):
-                return f"{label}: {passes} passes in {out}"
+                return f"{label}: {fmt.count(passes, 'pass')} in {out}"
             case protocol.Probed(samples=samples, settings=settings):
                 shown = ", ".join(f"{k.removeprefix('cycles.')} {v}" for k, v in sorted(settings.items()))
                 return f"{label}: the scene renders {samples} samples; {shown or 'no settings read'}"

@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from batch.jobs import protocol
+from batch.present import fmt
 from batch.present import progress as progress_module
 from batch.present.progress import Progress
 
@@ -125,8 +126,18 @@ def test_a_check_on_a_terminal_shows_the_evidence_on_its_line(capsys):
     progress = Progress(0, label="check", live=True)
     progress.emit(protocol.Looked(passes=9, p_value=0.0049, threshold=1.7e-06, ruled_out=0.0076, verdict=None,
                                 left=28, seconds=0.7))  # fmt: skip
+    progress.emit(protocol.Looked(passes=11, p_value=0.0049, threshold=1.7e-06, ruled_out=0.0076, verdict=None,
+                                left=1, seconds=0.9))  # fmt: skip
     err = capsys.readouterr().err
     assert "smallest p 0.0049 (stops at 1.7e-06); a bias beyond 0.76 % ruled out; 28 looks left" in err
+    assert "check: look 2 after 00:00, 11 passes a side, rendering 0.9 s (sides summed): " in err
+    assert "; 1 look left" in err and "/s" not in err  # no rate of looks ('22310.13look/s'), no '1 looks'
+
+
+def test_counts_are_singular_or_plural():
+    assert [fmt.count(n, "look") for n in (0, 1, 2)] == ["0 looks", "1 look", "2 looks"]
+    assert [fmt.count(n, "pass") for n in (1, 2)] == ["1 pass", "2 passes"]
+    assert Progress(1, label="render").describe(protocol.Finished(out="a.npz", passes=1)) == "render: 1 pass in a.npz"
 
 
 class Clock:
