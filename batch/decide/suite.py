@@ -53,6 +53,7 @@ import importlib.util
 import json
 import os
 import re
+import shlex
 import shutil
 import time
 import tomllib
@@ -511,7 +512,9 @@ def _run_case(
     except wc.WelchInputError as exc:  # truncated, foreign: this case can't run, the others can
         problem = str(exc)
     if problem:
-        return CaseResult(case, device, "error", message=f"the reference {reference_path(refs, case)}: {problem}")
+        advice = f"to render it anew: {bless_command(suite, case, refs)}"
+        message = f"the reference {reference_path(refs, case)}: {problem} ({advice})"
+        return CaseResult(case, device, "error", message=message)
     first = max(reference.seeds) + 1 + seed_offset
     # `passes` bounds the test side under a time budget too: past the reference's passes the two means differ in
     # how often they catch a rare bright path, which Welch's t does not forgive when one side has few passes.
@@ -590,7 +593,13 @@ def reference_problem(case: Case, reference: wc.TileStats, refs: Path) -> str | 
             expected.append(f"case {case.name!r}, its provenance names case {named!r}")
     if not expected:
         return None
-    return "not this case's reference: it should be of " + "; of ".join(expected) + " (run `suite bless --force`)"
+    return "not this case's reference: it should be of " + "; of ".join(expected)
+
+
+def bless_command(suite: Suite, case: Case, refs: Path) -> str:
+    """The command that renders `case`'s reference anew into `refs`, replacing the one there, for a shell."""
+    name = "builtin" if suite.path == BUILTIN else str(suite.path)
+    return shlex.join(["welch-bias", "suite", "bless", name, "--refs", str(refs), "--filter", case.name, "--force"])
 
 
 def _sha256(path: str) -> str:
