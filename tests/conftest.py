@@ -1,6 +1,7 @@
 """Fixtures shared by several test modules."""
 
 import os
+import shutil
 import subprocess
 from pathlib import Path
 
@@ -10,6 +11,18 @@ ROOT = Path(__file__).resolve().parents[1]
 
 #: The Debian sid root with Blender 5.2 that ./dev test makes (as root; see its sid_root).
 SID_ROOT = Path.home() / ".cache" / "welch-bias" / "debian-sid"
+
+
+@pytest.fixture(scope="session")
+def blender34() -> str:
+    """Debian's Blender 3.4 (on the system Python 3.11) with numpy in its Python, which ./dev test installs as root."""
+    blender = shutil.which("blender")
+    if blender is None:
+        pytest.skip("no blender on PATH (apt-get install blender python3-numpy; ./dev test does it as root)")
+    done = subprocess.run([blender, "-b", "--factory-startup", "--python-expr", "import numpy"], capture_output=True)
+    if done.returncode != 0 or b"Error" in done.stderr:
+        pytest.skip(f"{blender} has no numpy in its Python (apt-get install python3-numpy)")
+    return blender
 
 
 @pytest.fixture(scope="module")

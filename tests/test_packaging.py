@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 import welch_core as wc
+from batch.jobs import launch, releases
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The environment ./dev test makes for another Python (the function other_python there).
@@ -52,18 +53,27 @@ def test_the_wheel_holds_the_tools_packages_and_the_command_and_nothing_else(whe
     core = [r for r in requires if "extra ==" not in r]
     assert not any("bpy" in r for r in core), core  # bpy is the extra `cycles`
     assert any("bpy==5.0.1" in r and "3.11" in r for r in requires) and any("bpy==5.2.3" in r for r in requires)
+    for (major, minor), release in launch.BPY_RELEASES.items():  # what a render without bpy advises installing
+        assert any(f"bpy=={release}" in r and f'"{major}.{minor}"' in r for r in requires), (release, requires)
 
 
-@pytest.mark.slow
-def test_without_bpy_compare_works_and_a_cycles_render_says_what_to_install(wheel, tmp_path):
-    """A fresh venv, the wheel and its core dependencies only (numpy 2 where pip picks it): `welch-bias compare`
-    decides, and a render or a check with Cycles ends in one line naming the extra and --blender."""
-    env_dir = tmp_path / "venv"
+@pytest.fixture(scope="module")
+def installed(wheel, tmp_path_factory) -> Path:
+    """A fresh venv of this Python (3.11) with the wheel and its core dependencies only (numpy 2 where pip picks
+    it, no bpy): its `welch-bias` command."""
+    env_dir = tmp_path_factory.mktemp("installed") / "venv"
     venv.create(env_dir, with_pip=True)
     python = env_dir / "bin" / "python"
     subprocess.run([str(python), "-m", "pip", "install", "--quiet", "--disable-pip-version-check", str(wheel)],
                    check=True, capture_output=True, text=True, timeout=900)  # fmt: skip
-    command = env_dir / "bin" / "welch-bias"
+    return env_dir / "bin" / "welch-bias"
+
+
+@pytest.mark.slow
+def test_without_bpy_compare_works_and_a_cycles_render_says_what_to_install(installed, tmp_path):
+    """A fresh venv, the wheel and its core dependencies only: `welch-bias compare` decides, and a render or a
+    check with Cycles ends in one line naming the extra and --blender."""
+    command = installed
     rng = np.random.default_rng(1)
     for name, first, shift in (("a", 0, 0.0), ("b", 100, 30.0)):
         sums = rng.normal(1000.0 + shift, 10.0, (8, 2, 2, 3))
@@ -75,14 +85,52 @@ def test_without_bpy_compare_works_and_a_cycles_render_says_what_to_install(whee
     help_text = subprocess.run([str(command), "--help"], capture_output=True, text=True).stdout
     assert help_text.startswith("usage: welch-bias ")
     for args in (["render", "--scene", "corner", "--seeds", "0:2", "--spp", "1", "--out", "r.npz"],
-                 ["check", "--scene", "corner", "--unpaired", "--out", "c"]):  # fmt: skip
+                 ["check", "--scene", "corner", "--unpaired", "--out", "c"],
+                 ["suite", "run", "builtin", "--out", "s"]):  # fmt: skip
         done = subprocess.run([str(command), *args], capture_output=True, text=True, cwd=tmp_path)
         assert done.returncode == 2, done.stdout + done.stderr
         assert done.stderr.strip().splitlines() == [
-            "error: rendering with Cycles needs the bpy module, which this Python lacks: install it with pip install "
-            "'welch-bias[cycles]' (bpy 5.0.1 runs on Python 3.11, bpy 5.2.3 on 3.13), or render with --blender PATH "
-            "(a Blender binary) or --python PATH (a Python with bpy)"
+            "error: rendering with Cycles needs the bpy module, which this Python 3.11 lacks: install bpy 5.0.1 with "
+            f"{command.parent / 'python'} -m pip install bpy==5.0.1 (from a checkout of welch-bias: pip install "
+            "'.[cycles]'), or render with --blender PATH (a Blender binary) or --python PATH (a Python with bpy)"
         ]
+
+
+def installed_check(command: Path, blender: str, cwd: Path) -> subprocess.CompletedProcess:
+    """A tiny unpaired `welch-bias check` of the corner scene, both sides rendered by `blender`, run in `cwd`."""
+    return subprocess.run([str(command), "check", "--scene", "corner", "--resolution", "32", "32", "--unpaired",
+                           "--max-passes", "4", "--blender", blender, "--out", "check"], capture_output=True, text=True,
+                          cwd=cwd, timeout=600)  # fmt: skip
+
+
+def assert_rendered_by(folder: Path, version: str) -> None:
+    for side in ("reference", "test"):
+        run = wc.load_stats(folder / f"{side}.npz", pixels=False)
+        assert run.n >= 2 and run.info.renderer_version.startswith(version), (side, run.n, run.info.renderer_version)
+
+
+@pytest.mark.slow
+def test_an_installed_tool_drives_a_blender_of_another_python(installed, blender52, tmp_path):
+    """The tool installed into a venv of Python 3.11 drives Blender 5.2.2, which runs Python 3.14 with its own
+    numpy: only the tool's packages reach that Python (the venv's numpy, built for 3.11, would not import)."""
+    done = installed_check(installed, blender52, tmp_path)
+    assert done.returncode in (0, 3), done.stdout[-2000:] + done.stderr[-2000:]
+    assert_rendered_by(tmp_path / "check", "5.2.2")
+
+
+@pytest.mark.slow
+def test_an_installed_tool_renders_with_the_bpy_module_of_another_python(installed, tmp_path):
+    """`--python` with the bpy 5.2.3 environment (Python 3.13, its own numpy) from the tool in a Python 3.11 venv:
+    the other Python imports the tool's packages and nothing else of the venv."""
+    module = releases.python_of(releases.cache_folder() / "5.2.3")
+    if not module.exists():
+        pytest.skip(f"no bpy 5.2.3 environment in {releases.cache_folder()} (./dev test makes it)")
+    done = subprocess.run([str(installed), "render", "--scene", "corner", "--resolution", "32", "32", "--seeds", "0:2",
+                           "--spp", "1", "--python", str(module), "--out", "r.npz"], capture_output=True, text=True,
+                          cwd=tmp_path, timeout=600)  # fmt: skip
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+    run = wc.load_stats(tmp_path / "r.npz", pixels=False)
+    assert run.n == 2 and run.info.renderer_version.startswith("5.2.3"), run.info.renderer_version
 
 
 @pytest.fixture(scope="module")
@@ -117,6 +165,15 @@ def test_under_python_313_the_cycles_extra_installs_and_the_demo_runs(other_pyth
         text=True,
     ).stdout
     assert versions.startswith("(3, 13) (5, 2) 2."), versions
+
+
+@pytest.mark.slow
+def test_an_installed_tool_of_python_313_drives_blender_34(other_python, blender34, tmp_path):
+    """The tool installed into Python 3.13's environment (numpy 2) drives Debian's Blender 3.4, which runs the
+    system Python 3.11 with its numpy 1.24."""
+    done = installed_check(other_python.parent / "welch-bias", blender34, tmp_path)
+    assert done.returncode in (0, 3), done.stdout[-2000:] + done.stderr[-2000:]
+    assert_rendered_by(tmp_path / "check", "3.4.1")
 
 
 @pytest.mark.slow

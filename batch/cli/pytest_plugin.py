@@ -2,7 +2,8 @@
 item, decided against its reference as ``python -m batch suite run`` does (`batch.decide.suite`).
 
 A case passes when its verdict is what it expects and it could have failed (`batch.decide.suite.status_of`), fails
-with the verdict sentence, the passes it rendered, what differed between its sides and the report's path, and is
+with the verdict sentence, the passes it rendered, what differed between its sides and the report's path (a
+reference that is not the case's: with the ``welch-bias suite bless`` command that renders it anew), and is
 skipped with the reason when its device is missing; a suite file with a problem is one collection error listing
 every problem. A suite file that is an audit (an ``[audit]`` table, `batch.decide.audit.load_audit_file`) is an
 item per cell (a setting change on a scene: fails where a setting documented to change only the noise is confirmed
@@ -11,7 +12,7 @@ whose level is the whole audit's whatever ``-k`` selects. pytest's own ``-k``, `
 work as for any test. Options:
 
 ``--welch-bless``          render and store the references that are missing (the others are kept)
-``--welch-set KEY=VALUE``  a change for the test side of every case (repeatable): a planted change must fail
+``--welch-set KEY=VALUE``  a change for the test side of every case (repeatable): a case fails where it finds it
 ``--welch-refs DIR``       the references' folder (default: ``<suite file's stem>-refs`` next to the suite file)
 ``--welch-out DIR``        where each case's report goes (default: pytest's temporary folder)
 ``--welch-blender PATH``   the test side's Blender binary (default: the bpy module)

@@ -137,11 +137,14 @@ class Check:
 
         def side(name: str, side_job: RenderJob) -> Side:
             # Each side's own events (its passes): to `side_progress(name)` where given (the Blender add-on),
-            # else to a live line of its own on a terminal.
+            # else to a live line of its own on a terminal, or to a log's plain lines (its passes at most one
+            # line every few seconds, and a line that often while a pass takes long); none for programs.
             if side_progress is not None:
                 live = side_progress(name)
+            elif getattr(progress, "json_lines", False):
+                live = None
             else:
-                live = Progress(len(side_job.seeds), label=name, live=True) if progress.live else None
+                live = Progress(len(side_job.seeds), label=name, live=progress.live, brief=True)
             if cluster is not None:
                 return ClusterSide(name, side_job, cluster, live, warn=progress.warning)
             return Side(name, side_job, live, warn=progress.warning, env=env)
@@ -153,7 +156,12 @@ class Check:
         # The passes a side it may render: the plan's, or more when a resumed check's budget grew (its looks past
         # the plan's last spend the alpha kept for them, `wc.looks.EXTENSION_RESERVE`).
         self.budget = job.max_passes
-        self.render_seconds = 0.0
+        self.render_seconds = 0.0  # both sides' passes together (what --max-seconds counts)
+        # Each side's own render seconds (None: not known, a check started before they were kept) and the wall
+        # clock seconds of the check's runs (resumed runs add theirs), for people: the sides render at once.
+        self.side_seconds: dict[str, float] | None = {"reference": 0.0, "test": 0.0}
+        self.wall_seconds = 0.0
+        self._clock: float | None = None  # since when the wall clock runs uncounted (None: not running)
         self.last_look: tuple | None = None  # (the last look, both sides' statistics then): a live view's
         self.pairs: PixelPairs | None = None  # each pixel's difference per seed (paired, `batch.jobs.pairs`)
         self.pixel_pairs: wc.PixelMoments | None = None  # their moments at the last look
@@ -174,12 +182,17 @@ class Check:
             "reference": _side_record(self.job.reference),
             "test": _side_record(self.job.test),
             "render_seconds": self.render_seconds,
+            "side_seconds": self.side_seconds,
+            "wall_seconds": self.wall_seconds,
             "claim_tile": self.claim_tile,
             "ended_pass": self.ended_pass,
             "looks": self.looks,
         }
 
     def _save_state(self) -> None:
+        if self._clock is not None:
+            now = time.monotonic()
+            self.wall_seconds, self._clock = self.wall_seconds + now - self._clock, now
         text = json.dumps(self._state(), indent=2, allow_nan=False, default=_json_default)
         wc.formats.atomic_write(self.job.state_path(), lambda f: f.write(text.encode()))
 
@@ -239,6 +252,10 @@ class Check:
         self.plan = stored
         self.looks = list(state.get("looks", []))
         self.render_seconds = float(state.get("render_seconds", 0.0))
+        sides = state.get("side_seconds")
+        known = isinstance(sides, dict) and all(isinstance(sides.get(k), (int, float)) for k in ("reference", "test"))
+        self.side_seconds = {k: float(sides[k]) for k in ("reference", "test")} if known else None
+        self.wall_seconds = float(state.get("wall_seconds", 0.0))
         claim = state.get("claim_tile")
         if claim is not None and (isinstance(claim, bool) or not isinstance(claim, int) or claim < 1):
             raise BatchError(f"{path} is not a readable check state (claim_tile {claim!r})")
@@ -284,7 +301,7 @@ class Check:
         """Both sides up to `passes` passes (at once: the sides share the machine, the chunk takes the longer),
         yielding while they render. The render seconds are the passes' own (what `--max-seconds` counts): a render
         process's start-up, loading the scene once, is not a pass's."""
-        before = sum(side.render_seconds for side in self.rendered)
+        before = {side.name: side.render_seconds for side in self.rendered}
         for side in self.rendered:
             side.request(passes)
         waiting = list(self.rendered)
@@ -295,31 +312,41 @@ class Check:
                 return
             if waiting:
                 yield
-        self.render_seconds += sum(side.render_seconds for side in self.rendered) - before
+        for side in self.rendered:
+            spent = side.render_seconds - before[side.name]
+            self.render_seconds += spent
+            if self.side_seconds is not None:
+                self.side_seconds[side.name] += spent
 
-    def _spent(self, before: float, waiting: list[Side]) -> float:
-        """The render seconds spent so far, with those of the passes rendering now (`before`: the sides' render
+    def _spent(self, before: dict[str, float], waiting: list[Side]) -> float:
+        """The render seconds spent so far, with those of the passes rendering now (`before`: each side's render
         seconds when the chunk was asked for)."""
-        rendered = sum(side.render_seconds for side in self.rendered) - before
+        rendered = sum(side.render_seconds - before[side.name] for side in self.rendered)
         return self.render_seconds + rendered + sum(side.running_seconds() for side in waiting)
 
-    def _past_budget(self, before: float, waiting: list[Side]) -> bool:
+    def _past_budget(self, before: dict[str, float], waiting: list[Side]) -> bool:
         """Whether the passes rendering now have run `BUDGET_MARGIN` past the time budget (never without one)."""
         budget = self.job.max_seconds
         return budget is not None and self._spent(before, waiting) > budget + BUDGET_MARGIN
 
-    def _end_passes(self, before: float, waiting: list[Side]) -> None:
+    def _end_passes(self, before: dict[str, float], waiting: list[Side]) -> None:
         """The time budget is spent: stop the passes still rendering (their sides end, the passes they saved stay
         theirs) and count the seconds they ran as spent, so that a resumed check knows its budget spent."""
         spent = self._spent(before, waiting)
+        running = {side.name: side.running_seconds() for side in waiting}
+        at_stop = {side.name: side.render_seconds - before[side.name] + running.get(side.name, 0.0)
+                   for side in self.rendered}  # fmt: skip
         budget = fmt.duration(self.job.max_seconds)
         self.progress.warning(f"the time budget ({budget}) is spent: stopping the passes still rendering")
         for side in waiting:
             side.ask_to_stop()
         for side in waiting:
             side.end_pass()
-        rendered = sum(side.render_seconds for side in self.rendered) - before
+        rendered = sum(side.render_seconds - before[side.name] for side in self.rendered)
         self.render_seconds = max(self.render_seconds + rendered, spent)
+        if self.side_seconds is not None:
+            for side in self.rendered:
+                self.side_seconds[side.name] += max(side.render_seconds - before[side.name], at_stop[side.name])
         whose = f"the {waiting[0].name} side's pass" if len(waiting) == 1 else "the passes of both sides"
         self.ended_pass = (f"the time budget ({budget}) ended {whose} still rendering at {fmt.duration(spent)} of "
                            "render seconds")  # fmt: skip
@@ -367,6 +394,7 @@ class Check:
             self._load_state()
         elif self.job.reference.pass_images is not None:
             PixelPairs.clear(self.job.out)  # a new check: nothing of an earlier one in this folder counts
+        self._clock = time.monotonic()
         if self.job.reference.pass_images is not None:
             self.pairs = PixelPairs(self.job.out)
         self._save_state()  # before anything renders: a check stopped at once can still be resumed
@@ -583,7 +611,8 @@ def report_check(check: Check, look: wc.Look, ref: wc.TileStats, test: wc.TileSt
     job = check.job
     layers = (wc.load_layers(job.reference.out, pixels=False), wc.load_layers(job.test.out, pixels=False))
     early = (check.plan.early, wc.looks.EARLY_PASSES)
-    record = check_record(job, check.looks, check.plan.max_passes, look, early, check.ended_pass)
+    durations = {"wall": check.wall_seconds, "sides": check.side_seconds}
+    record = check_record(job, check.looks, check.plan.max_passes, look, early, check.ended_pass, durations)
     comparison = look_comparison(job, ref, test, check.pixel_pairs, check.plan.pixel_variance)
     assessment = assess(comparison, ref, test, outcome=look.outcome, check=record, layers=layers)
     return write(job.out, assessment, ref, test), assessment

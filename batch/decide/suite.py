@@ -49,9 +49,11 @@ Nothing here imports bpy: the renders run in their own processes through the ren
 from __future__ import annotations
 
 import fnmatch
+import importlib.util
 import json
 import os
 import re
+import shlex
 import shutil
 import time
 import tomllib
@@ -65,6 +67,7 @@ from ..jobs import command as jobs_command
 from ..jobs import options
 from ..jobs.distributed import cluster as side_cluster
 from ..jobs.job import BUILTIN_SCENES, NO_GPU_MESSAGE, RenderJob, builtin_scene_id
+from ..jobs.launch import blender_version, bpy_version, no_bpy
 from ..jobs.protocol import FAILING, verdict_status
 from .check import CheckJob, run_check
 
@@ -316,6 +319,19 @@ class Blessed:
     report: str | None = None
 
 
+def require_build(cases: list[Case], blender: str | None, python: str | None) -> None:
+    """One BatchError before anything renders, not one error per case, when what renders the Cycles cases in this
+    process can't: a `blender` that is not a Blender, a `python` without bpy, or neither and no bpy here."""
+    if all(case.command is not None for case in cases):
+        return  # other renderers' commands only
+    if blender:
+        blender_version(blender)
+    elif python:
+        bpy_version(python)
+    elif importlib.util.find_spec("bpy") is None:
+        raise BatchError(no_bpy())
+
+
 def bless(suite: Suite, cases: list[Case], refs: Path, progress_factory, force: bool = False, blender=None,
           device: str | None = None, say=print, missing: bool = False, python=None) -> list[Blessed]:  # fmt: skip
     """Render the reference of each case into `refs`. A case that has one already gets a new render on new
@@ -324,6 +340,7 @@ def bless(suite: Suite, cases: list[Case], refs: Path, progress_factory, force: 
     the cases without a reference are rendered (the others are "kept")."""
     from ..jobs.side import run_job
 
+    require_build([c for c in cases if not (missing and reference_path(refs, c).exists())], blender, python)
     refs.mkdir(parents=True, exist_ok=True)
     done = []
     for number, case in enumerate(cases, 1):
@@ -464,6 +481,8 @@ def run_suite(suite: Suite, cases: list[Case], refs: Path, out: Path, progress_f
     missing = [c.name for c in cases if not reference_path(refs, c).exists()]
     if missing:
         raise BatchError(f"no reference for {', '.join(missing)} in {refs}: run `suite bless` first")
+    if not any(cluster):  # rendered here (a cluster's workers have what they have)
+        require_build(cases, blender, python)
     runs = [(case, d) for case in cases for d in ((device,) if device else case.devices)]
     if not resume:
         taken = [str(out / c.name / d) for c, d in runs if (out / c.name / d).exists()]
@@ -493,7 +512,9 @@ def _run_case(
     except wc.WelchInputError as exc:  # truncated, foreign: this case can't run, the others can
         problem = str(exc)
     if problem:
-        return CaseResult(case, device, "error", message=f"the reference {reference_path(refs, case)}: {problem}")
+        advice = f"to render it anew: {bless_command(suite, case, refs)}"
+        message = f"the reference {reference_path(refs, case)}: {problem} ({advice})"
+        return CaseResult(case, device, "error", message=message)
     first = max(reference.seeds) + 1 + seed_offset
     # `passes` bounds the test side under a time budget too: past the reference's passes the two means differ in
     # how often they catch a rare bright path, which Welch's t does not forgive when one side has few passes.
@@ -572,7 +593,13 @@ def reference_problem(case: Case, reference: wc.TileStats, refs: Path) -> str | 
             expected.append(f"case {case.name!r}, its provenance names case {named!r}")
     if not expected:
         return None
-    return "not this case's reference: it should be of " + "; of ".join(expected) + " (run `suite bless --force`)"
+    return "not this case's reference: it should be of " + "; of ".join(expected)
+
+
+def bless_command(suite: Suite, case: Case, refs: Path) -> str:
+    """The command that renders `case`'s reference anew into `refs`, replacing the one there, for a shell."""
+    name = "builtin" if suite.path == BUILTIN else str(suite.path)
+    return shlex.join(["welch-bias", "suite", "bless", name, "--refs", str(refs), "--filter", case.name, "--force"])
 
 
 def _sha256(path: str) -> str:

@@ -1,5 +1,6 @@
-"""Run a render job in another process: this Python (``python -m batch render``) or any Blender binary
-(``blender -b ... --python batch/blender_entry.py -- render ...``), built from the job contract, with its
+"""Run a render job in another process: this Python (``python -m batch render``), any Blender binary
+(``blender -b ... --python batch/blender_entry.py -- render ...``) or another environment's Python with bpy
+(``python batch/blender_entry.py -- render ...``), built from the job contract, with its
 progress events read back as they come.
 
 The driver of a render side (`batch.jobs.side`) starts its processes here. Nothing here imports bpy.
@@ -85,8 +86,9 @@ def job_command(
     ``--probe``: no pass, only what its scene asks of the passes, `protocol.Probed`).
 
     With ``job.blender``: that Blender opens the .blend (or starts from factory settings for a built-in scene)
-    and runs the entry script with the job after ``--``. Without: ``python -m batch render`` with `python`, the
-    tool's folder and `python_paths` (where extra packages live) on ``PYTHONPATH``.
+    and runs the entry script with the job after ``--``; with ``job.python``, that Python runs the entry script the
+    same way. Without either: ``python -m batch render`` with `python`, the tool's folder and `python_paths`
+    (where extra packages live) on ``PYTHONPATH``.
     """
     env = dict(os.environ if base_env is None else base_env)
     env["PYTHONUNBUFFERED"] = "1"  # progress lines must arrive as they are printed, not when a buffer fills
@@ -102,10 +104,12 @@ def job_command(
         argv += ["--python", str(ENTRY_SCRIPT), "--", "render", *child.replace(blend=None).to_argv(), *mode]
         return Command(argv, env)
     if job.python:
-        # Another environment's Python: the tool's code reaches it on PYTHONPATH, and nothing of this one's.
-        env.pop("PYTHONHOME", None)
-        env["PYTHONPATH"] = str(ROOT)
-        return Command([job.python, "-m", "batch", "render", *job.replace(python=None).to_argv(), *mode], env)
+        # Another environment's Python runs the entry script as a Blender does: the tool's own packages reach it,
+        # nothing else of this one's (installed, ROOT is a site-packages whose numpy is built for this Python).
+        for name in ("PYTHONPATH", "PYTHONHOME"):
+            env.pop(name, None)
+        argv = [job.python, str(ENTRY_SCRIPT), "--", "render", *job.replace(python=None).to_argv(), *mode]
+        return Command(argv, env)
     if python == sys.executable:
         require_bpy(job)
     paths = [str(ROOT), *python_paths, *filter(None, env.get("PYTHONPATH", "").split(os.pathsep))]
@@ -134,20 +138,36 @@ def _ask(option: str, argv: list[str], asking: str) -> subprocess.CompletedProce
         raise BatchError(f"{option} {path}: can't run it ({exc.strerror or exc})") from None
 
 
-#: What a Cycles render without bpy says, in one line.
-NO_BPY = (
-    "rendering with Cycles needs the bpy module, which this Python lacks: install it with pip install "
-    "'welch-bias[cycles]' (bpy 5.0.1 runs on Python 3.11, bpy 5.2.3 on 3.13), or render with --blender PATH (a "
-    "Blender binary) or --python PATH (a Python with bpy)"
-)
+#: The bpy release that runs on each Python, as the `cycles` extra of pyproject.toml installs it
+#: (tests/test_packaging.py holds the two to each other).
+BPY_RELEASES = {(3, 11): "5.0.1", (3, 13): "5.2.3"}
+
+
+def no_bpy(version: tuple[int, int] | None = None) -> str:
+    """What a Cycles render in a Python without bpy says, in one line: the bpy release for that Python (this one's
+    `version` by default) and the command that installs it, or that none runs there; and the other ways."""
+    major, minor = version or sys.version_info[:2]
+    ways = "render with --blender PATH (a Blender binary) or --python PATH (a Python with bpy)"
+    release = BPY_RELEASES.get((major, minor))
+    if release is None:
+        known = ", ".join(f"{bpy} runs on {a}.{b}" for (a, b), bpy in sorted(BPY_RELEASES.items()))
+        return (
+            f"rendering with Cycles needs the bpy module, which this Python {major}.{minor} lacks, and no bpy release "
+            f"the tool installs runs on it (bpy {known}): {ways}; welch-bias bpy VERSION makes such a Python"
+        )
+    return (
+        f"rendering with Cycles needs the bpy module, which this Python {major}.{minor} lacks: install bpy {release} "
+        f"with {sys.executable} -m pip install bpy=={release} (from a checkout of welch-bias: pip install "
+        f"'.[cycles]'), or {ways}"
+    )
 
 
 def require_bpy(job: RenderJob) -> None:
-    """BatchError (`NO_BPY`) when `job` renders with Cycles in this Python and it has no bpy module."""
+    """BatchError (`no_bpy`) when `job` renders with Cycles in this Python and it has no bpy module."""
     import importlib.util
 
     if job.command is None and not job.blender and not job.python and importlib.util.find_spec("bpy") is None:
-        raise BatchError(NO_BPY)
+        raise BatchError(no_bpy())
 
 
 @functools.cache

@@ -2,10 +2,11 @@
 VERSION``), whose Python a job takes as ``--python PATH`` (`batch.jobs.launch.bpy_version` checks it).
 
 A bpy release is a Python module of about 1 GB (Cycles and all); its environment holds that module and what pip
-brings with it (numpy) and nothing of the tool, whose code reaches it on PYTHONPATH. The environments live in
-``$WELCH_BPY_CACHE``, else ``$XDG_CACHE_HOME/welch-bias/bpy``, else ``~/.cache/welch-bias/bpy``, one folder per
-release; one is built in a temporary folder and renamed when it works, so an interrupted or failed install
-leaves nothing half made. Nothing here imports bpy.
+brings with it (numpy) and nothing of the tool: it runs the tool's entry script (``batch/blender_entry.py``), which
+imports the tool's own packages from where they are. The environments live in ``$WELCH_BPY_CACHE``, else
+``$XDG_CACHE_HOME/welch-bias/bpy``, else ``~/.cache/welch-bias/bpy``, one folder per release; one is built in a
+temporary folder and renamed when it works, so an interrupted or failed install leaves nothing half made.
+Nothing here imports bpy.
 """
 
 from __future__ import annotations

@@ -173,6 +173,9 @@ class Side:
         if code is not None:
             self._relay()
             self._failed(code)
+        tick = getattr(self.progress, "tick", None)
+        if tick is not None:
+            tick()  # a log that is not a terminal hears how far the side is while a pass takes long
         waited = time.monotonic() - self._started_at
         if not self._alive and waited > START_NOTICE and not self._noticed:
             self._noticed = True

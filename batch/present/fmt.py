@@ -42,6 +42,13 @@ def duration(seconds: float | None) -> str:
     return f"{seconds // 3600} h {seconds % 3600 // 60:02d} min"
 
 
+def count(n: int, word: str, plural: str | None = None) -> str:
+    """'1 look', '5 looks', '1 pass', '2 passes' (`plural`: the word's plural where adding s is wrong)."""
+    if n == 1:
+        return f"{n} {word}"
+    return f"{n} {plural or (word + 'es' if word.endswith('s') else word + 's')}"
+
+
 def one_line(text: str, limit: int = ONE_LINE_LENGTH) -> str:
     """Whitespace collapsed to single spaces and cut to `limit` characters."""
     text = " ".join(str(text).split())

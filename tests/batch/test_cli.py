@@ -103,6 +103,50 @@ def test_blender_entry_script_parses_arguments_after_dashdash():
     assert "REF TEST" in done.stdout and "--paired" in done.stdout
 
 
+def test_blender_entry_script_imports_the_tools_packages_and_nothing_else_of_their_folder(tmp_path):
+    """Installed, the tool's packages sit in a venv's site-packages beside another Python's numpy: the entry
+    imports batch and welch_core from there, numpy from the Blender's own Python, and never puts the folder on
+    sys.path."""
+    site = tmp_path / "site-packages"
+    (site / "numpy").mkdir(parents=True)
+    (site / "numpy" / "__init__.py").write_text("raise ImportError('the venv numpy, built for another Python')\n")
+    for name in ("batch", "welch_core"):
+        (site / name).symlink_to(ROOT / name)
+    code = (
+        "import runpy, sys; runpy.run_path(sys.argv[1]);"
+        "import batch.cli, welch_core, numpy; print(numpy.__file__);"
+        "print(any(p.startswith(sys.argv[2]) for p in sys.path))"
+    )
+    entry = site / "batch" / "blender_entry.py"
+    done = subprocess.run([sys.executable, "-c", code, str(entry), str(site)], capture_output=True, text=True,
+                          cwd=tmp_path)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    numpy_file, on_path = done.stdout.split()
+    assert not numpy_file.startswith(str(site)) and on_path == "False"
+
+
+def test_blender_entry_script_says_in_one_line_which_python_lacks_numpy(tmp_path):
+    """A Blender whose Python can't import numpy: one line naming that Python and the module, exit 2, and the
+    same line as the job's error event for whoever started it."""
+    code = (
+        "import runpy, sys; sys.modules['numpy'] = sys.modules['bpy'] = None;"
+        "sys.argv = ['blender', '-b', '--python', 'x.py', '--', 'render', '--json-progress'];"
+        f"runpy.run_path({str(ROOT / 'batch' / 'blender_entry.py')!r}, run_name='__main__')"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path)
+    assert done.returncode == Exit.USAGE
+    version = sys.version.split()[0]
+    expected = (
+        f"this Blender runs Python {version} ({sys.executable}), which can't import numpy (import of numpy halted; "
+        "None in sys.modules): install numpy for that Python (Debian's blender package: apt-get install "
+        "python3-numpy)"
+    )
+    assert done.stderr.splitlines() == [f"error: {expected}"]
+    from batch.jobs import protocol
+
+    assert [protocol.parse(line) for line in done.stdout.splitlines()] == [protocol.Failed(expected)]
+
+
 @pytest.mark.parametrize("command", ["render", "ingest", "compare", "selftest", "merge", "lint", "demo"])
 def test_every_command_has_help(command, capsys):
     with pytest.raises(SystemExit) as exit_info:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shlex
 import subprocess
 import sys
 import time
@@ -213,6 +214,13 @@ def test_a_reference_of_another_case_is_named_and_not_used(tmp_path):
     assert "not this case's reference: it should be of the built-in scene 'corner', it holds 'glossy'" in (
         outcomes[0].message
     )
+    # A command that renders it anew, with the folder the references are in (a suite file's own is not found).
+    advice = f"(to render it anew: welch-bias suite bless {tmp_path / 's.toml'} --refs {refs} --filter a --force)"
+    assert outcomes[0].message.endswith(advice), outcomes[0].message
+    args = cli.build_parser().parse_args(shlex.split(advice.split(": ", 1)[1].rstrip(")"))[1:])
+    assert (args.suite_command, args.suite_file, args.refs, args.filter, args.force) == (
+        "bless", str(tmp_path / "s.toml"), str(refs), ["a"], True
+    )  # fmt: skip
     assert not (tmp_path / "out" / "a").exists()  # nothing rendered
     (refs / "a.npz").write_bytes((refs / "a.npz").read_bytes()[:100])  # truncated: that case alone fails, named
     outcomes = suites.run_suite(suite, list(suite.cases), refs, tmp_path / "out2", lambda n: None, say=lambda _: 0)

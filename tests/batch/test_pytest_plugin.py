@@ -3,7 +3,11 @@ file, pytest run there with the installed package's plugin. Renders with Cycles 
 
 from __future__ import annotations
 
+import json
 import re
+import shlex
+import subprocess
+import sys
 import xml.etree.ElementTree as ET
 
 import pytest
@@ -53,6 +57,20 @@ def test_cases_are_tests_blessed_once_and_a_planted_change_fails(project):
 
     again = pytest_in(project, "-k", "CPU")
     assert again.returncode == 0 and (refs / "corner.npz").read_bytes() == stored  # the reference is kept
+
+    # A reference that is not the case's (its provenance names another case): the failure names a command that
+    # renders it anew in the plugin's folder of references, and after it the case passes.
+    provenance = refs / "corner.json"
+    provenance.write_text(json.dumps({**json.loads(provenance.read_text()), "case": "other"}))
+    wrong = pytest_in(project, "-k", "CPU")
+    assert wrong.returncode == 1 and "not this case's reference" in wrong.stdout
+    command = re.search(r"\(to render it anew: (welch-bias suite bless .*? --force)\)", wrong.stdout).group(1)
+    assert shlex.split(command)[3:] == [str(project / "welch_smoke.toml"), "--refs", str(refs), "--filter", "corner",
+                                        "--force"]  # fmt: skip
+    done = subprocess.run([sys.executable, "-m", "batch", *shlex.split(command)[1:]], cwd=project,
+                          capture_output=True, text=True, timeout=600)  # fmt: skip
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+    assert pytest_in(project, "-k", "CPU").returncode == 0
 
     planted = pytest_in(project, "-k", "CPU", "--welch-set", "cycles.max_bounces=0", "--junitxml", "j.xml")
     assert planted.returncode == 1

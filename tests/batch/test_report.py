@@ -97,13 +97,22 @@ def test_a_check_report_lists_its_looks(tmp_path):
     class Job:
         max_seconds, tolerance, paired, seed_offset, auto_samples = None, 0.01, False, 0, None
 
-    check = summary.check_record(Job, looks, 32, look)
+    durations = {"wall": 76.0, "sides": {"reference": 52.0, "test": 52.4}}  # the sides render at once
+    check = summary.check_record(Job, looks, 32, look, durations=durations)
     s = summary.summarize(c, ref, test, outcome=look.outcome, check=check)
     report.write_report(tmp_path, s, c, ref, test, significant=look.outcome.significant)
     data = page_data(tmp_path / "report.html")
     assert data["summary"]["check"]["looks"] == looks and data["summary"]["p_value"] is None
     assert data["summary"]["outcome"]["design"] == "sequential"
-    assert "1 looks, " in (tmp_path / "report.html").read_text()
+    # Each duration says what it is: not '1 min 44 s of rendering' (both sides added) in a run of 76 s.
+    text = (tmp_path / "report.html").read_text()
+    assert f"1 look, {look.passes} passes a side, 1 min 16 s wall clock, rendering: reference 52 s, test 52 s" in text
+    fixed = summary.check_record(
+        Job, looks, 32, look, durations={"wall": 6.1, "sides": {"reference": 0.0, "test": 5.9}}
+    )
+    assert summary.durations_text(fixed) == "6.1 s wall clock, rendering: test 5.9 s"  # a suite: a stored reference
+    older = summary.check_record(Job, looks, 32, look)  # a check whose state predates the durations
+    assert summary.durations_text(older) == "rendering: 0.1 s, sides summed"
 
 
 def test_compare_imports_no_plotting_library_and_no_scipy_stats(tmp_path):

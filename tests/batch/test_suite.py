@@ -325,6 +325,22 @@ def test_a_missing_reference_is_refused_before_anything_renders(tmp_path):
     assert "--refs is required for" in done.stderr
 
 
+@pytest.mark.parametrize("command", ["run", "bless"])
+def test_a_problem_of_the_renderer_is_one_line_before_anything_renders_not_one_per_case(tmp_path, command):
+    """Without bpy (hidden here), or with a --blender that is no program, the built-in suite's 15 cases end in one
+    line, exit 2, before the first case starts."""
+    code = "import sys; sys.modules['bpy'] = None; from batch.cli import main; sys.exit(main(sys.argv[1:]))"
+    where = ["--out", str(tmp_path / "out")] if command == "run" else ["--refs", str(tmp_path / "refs")]
+    for extra, message in (([], "error: rendering with Cycles needs the bpy module, which this Python "),
+                           (["--blender", str(tmp_path / "none")], f"error: --blender {tmp_path / 'none'}: no such "
+                            "program")):  # fmt: skip
+        done = subprocess.run([sys.executable, "-c", code, "suite", command, "builtin", *where, *extra],
+                              capture_output=True, text=True)  # fmt: skip
+        assert done.returncode == 2, done.stdout + done.stderr
+        assert done.stdout == "" and len(done.stderr.splitlines()) == 1 and done.stderr.startswith(message), done.stderr
+    assert not (tmp_path / "out").exists() and not (tmp_path / "refs").exists()
+
+
 @pytest.mark.slow
 def test_a_suite_run_interrupted_in_its_second_case_resumes(blessed, tmp_path):
     """Ctrl-C as the second case starts (its render process still loading): exit 130, the first case's check kept
