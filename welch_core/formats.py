@@ -399,7 +399,7 @@ class _Reader:
             return None
         mean, m2 = (self.array(key, "f", shape) for key in ("pixel_mean", "pixel_m2"))
         try:
-            return PixelMoments.of(mean, m2, n)
+            return PixelMoments.of(mean, m2, n, names=("'pixel_mean'", "'pixel_m2'"))
         except WelchInputError as exc:
             raise self.fail(str(exc)) from None
 

@@ -115,13 +115,17 @@ class PixelMoments:
         self._merged: tuple | None = None  # (the other moments, their n, `merged` with them)
 
     @classmethod
-    def of(cls, mean: npt.ArrayLike, m2: npt.ArrayLike, n: int) -> PixelMoments:
-        """Moments read back (a statistics file) or computed elsewhere; checked."""
+    def of(
+        cls, mean: npt.ArrayLike, m2: npt.ArrayLike, n: int, names: tuple[str, str] = ("`mean`", "`m2`")
+    ) -> PixelMoments:
+        """Moments read back (a statistics file) or computed elsewhere; checked: every mean finite, every M2
+        finite and >= 0, or WelchInputError naming the array as `names` say (a file's arrays by their keys)."""
         mean, m2 = np.asarray(mean, dtype=np.float64), np.asarray(m2, dtype=np.float64)
         if mean.ndim != 3 or mean.shape != m2.shape:
             raise WelchInputError(f"pixel moments must be two H×W×C arrays, got {mean.shape} and {m2.shape}")
-        if not (np.isfinite(m2).all() and (m2 >= 0).all()):
-            raise WelchInputError("pixel M2 must be finite and >= 0")
+        _check_values(names[0], mean, "finite", np.isfinite(mean))
+        with np.errstate(invalid="ignore"):
+            _check_values(names[1], m2, "finite and >= 0", np.isfinite(m2) & (m2 >= 0))
         out = cls(*mean.shape)
         out.n, out.mean, out.m2 = int(n), mean, m2
         return out
@@ -205,6 +209,16 @@ class PixelMoments:
         blocks = s2.reshape(grid[0], tile, grid[1], tile, -1)
         self._memo[key] = blocks.sum(axis=(1, 3)), (blocks * blocks).sum(axis=(1, 3))
         return self._memo[key]
+
+
+def _check_values(name: str, values: np.ndarray, allowed: str, good: np.ndarray) -> None:
+    """WelchInputError naming `name`, what it must be and its first bad value with where it is, unless all `good`."""
+    if good.all():
+        return
+    y, x, c = np.unravel_index(int(np.argmin(good)), good.shape)
+    bad = int((~good).sum())
+    where = f"pixel x {x}, y {y}, channel {c}" + (f", and {bad - 1} more" if bad > 1 else "")
+    raise WelchInputError(f"{name} must be {allowed}, got {float(values[y, x, c])!r} ({where})")
 
 
 def _block_sums(values: np.ndarray, factor: int, grid: tuple[int, int]) -> np.ndarray:

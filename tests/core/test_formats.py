@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
-from welch_core import RunInfo, StatsFileError, TileStats, WelchInputError, load_stats, save_stats
+from welch_core import PixelMoments, RunInfo, StatsFileError, TileStats, WelchInputError, load_stats, save_stats
 from welch_core.formats import FORMAT_NAME, FORMAT_VERSION
 
 
@@ -443,6 +443,37 @@ def test_version1_files_are_read_and_checked(tmp_path):
     expect_damaged(path, arrays | {"mean": mean}, contradiction)
     expect_damaged(path, arrays | {"mean": np.full_like(mean, np.nan)}, contradiction)
     expect_damaged(path, arrays | {"m2": -arrays["m2"]}, contradiction)
+
+
+def moments_run(seed=0, n=8, offset=0.0):
+    """A run that keeps its pixel moments, of float32 passes (the tile sums add float32 rows)."""
+    rng = np.random.default_rng(seed)
+    run = TileStats(24, 40, 8, keep_pixel_moments=True)
+    for i in range(n):
+        run.add_pass((offset + rng.gamma(2.0, 0.5, (24, 40, 3))).astype(np.float32), 2000 + 100 * seed + i)
+    return run
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "message"),
+    [
+        ("pixel_mean", np.nan, "'pixel_mean' must be finite, got nan (pixel x 7, y 5, channel 1)"),
+        ("pixel_mean", -np.inf, "'pixel_mean' must be finite, got -inf (pixel x 7, y 5, channel 1)"),
+        ("pixel_m2", np.inf, "'pixel_m2' must be finite and >= 0, got inf (pixel x 7, y 5, channel 1)"),
+        ("pixel_m2", -1.0, "'pixel_m2' must be finite and >= 0, got -1.0 (pixel x 7, y 5, channel 1)"),
+    ],
+)
+def test_load_refuses_pixel_moments_that_are_not_finite_naming_the_array(tmp_path, key, value, message):
+    """A NaN or inf pixel mean was refused only when the moments were merged, as 'pixel M2', without the file."""
+    arrays = good_arrays(moments_run(), tmp_path)
+    damaged = arrays[key].copy()
+    damaged[5, 7, 1] = value
+    expect_damaged(tmp_path / "moments.npz", arrays | {key: damaged}, message)
+    with pytest.raises(WelchInputError, match=re.escape(message.replace(f"'{key}'", f"`{key[6:]}`"))):
+        PixelMoments.of(*(damaged if k == key else arrays[k] for k in ("pixel_mean", "pixel_m2")), 8)
+    damaged[0, 0, 0] = value  # more than one: the first, and how many more
+    first = message.split(" (")[0] + " (pixel x 0, y 0, channel 0, and 1 more)"
+    expect_damaged(tmp_path / "moments.npz", arrays | {key: damaged}, first)
 
 
 def test_load_missing_path(tmp_path):
