@@ -34,9 +34,10 @@ Hypothesis and family: per tile-channel H0 is that the two sides' expected tile 
 test; the pixel test replaces the tile test's p-value of a tile-channel and the family (`comparison`, `looks`) is
 unchanged. Its assumption, (1), is not tested by the data at a few passes, so it is used only where the run's own
 record proves the settings under which it was measured (`pixel_eligibility`), and refused where the data contradict it
-grossly (`tripwire`). Where (3) is small the tile's pixels are skewed (a few pixels carry the tile) and
-Satterthwaite's df, which assumes normal pixels, overstates the evidence: below `MIN_PIXEL_DF` a tile-channel
-keeps the tile test (measured: docs/findings/pixel_variance.md).
+grossly (`tripwire`) or the moments can't be those of the tile sums' passes (`moment_conflict`). Where (3) is
+small the tile's pixels are skewed (a few pixels carry the tile) and Satterthwaite's df, which assumes normal
+pixels, overstates the evidence: below `MIN_PIXEL_DF` a tile-channel keeps the tile test (measured:
+docs/findings/pixel_variance.md).
 
 numpy only (scipy where a p-value is computed): the moments are accumulated inside a stock Blender.
 """
@@ -56,9 +57,12 @@ __all__ = [
     "INDEPENDENT_PATTERNS",
     "MIN_PIXEL_DF",
     "PIXEL_MODES",
+    "ROUNDING",
     "TRIPWIRE_RATIO",
     "PixelMoments",
     "PixelUse",
+    "Tripwire",
+    "moment_conflict",
     "pixel_eligibility",
     "pixel_paired",
     "pixel_use",
@@ -92,6 +96,13 @@ INDEPENDENT_PATTERNS = frozenset(
         for pattern in ("TABULATED_SOBOL", "BLUE_NOISE", "AUTOMATIC")
     }
 )
+
+#: How far the identities (5) and (6) of `moment_conflict` may miss: this many times the rounding of the sums
+#: involved, (tile x float32's epsilon + (passes + pixels of a tile) x float64's), x sqrt(passes + 1) x the tile's
+#: scale, sum_p (|mean_p| + sqrt(M2_p)), which bounds every pass's sum of |pixel|. A float32 pass's tile sums add
+#: its rows' partial sums of `tile` pixels in float32 (`tiles.tile_sums`); a Welford mean and M2 and the float64
+#: sums round at most linearly in the values summed; 4 to spare. A damaged or foreign array misses by far more.
+ROUNDING = 4.0
 
 #: The tripwire's limit on the median over tile-channels of (tile-sum variance / V), each divided by the median
 #: of its null distribution chi²(n - 1) / (n - 1): independent pixels give about 1, the scrambling distance 0.1
@@ -200,15 +211,26 @@ class PixelMoments:
             factor = tile // base[0]
             self._memo[key] = tuple(_block_sums(a, factor, grid) for a in self._memo[base])
             return self._memo[key]
-        s2 = np.zeros((grid[0] * tile, grid[1] * tile, self.shape[2]))
-        rows, cols = min(covered[0], grid[0] * tile), min(covered[1], grid[1] * tile)
-        if about_zero:
-            s2[:rows, :cols] = (self.m2 / self.n + self.mean**2)[:rows, :cols]
-        else:
-            s2[:rows, :cols] = self.variance()[:rows, :cols]
-        blocks = s2.reshape(grid[0], tile, grid[1], tile, -1)
-        self._memo[key] = blocks.sum(axis=(1, 3)), (blocks * blocks).sum(axis=(1, 3))
+        s2 = self.m2 / self.n + self.mean**2 if about_zero else self.variance()
+        self._memo[key] = _tile_totals(s2, tile, grid, covered), _tile_totals(s2 * s2, tile, grid, covered)
         return self._memo[key]
+
+    def conflict(self, tile: int, grid: tuple[int, int], covered: tuple[int, int], sums: np.ndarray):
+        """Per tile-channel of a `grid` of `tile`-pixel tiles over the `covered` pixels, whether these moments can
+        be those of the passes whose tile sums are `sums` (n, rows, columns, channels), by (5) and (6) of
+        `moment_conflict`: two boolean arrays (the means, the spread), True where they contradict them."""
+        with np.errstate(invalid="ignore", over="ignore"):
+            sd = np.sqrt(self.m2)
+            total, spread = _tile_totals(self.mean, tile, grid, covered), _tile_totals(sd, tile, grid, covered)
+            scale = _tile_totals(np.abs(self.mean), tile, grid, covered) + spread
+            n = len(sums)
+            rounding = tile * np.finfo(np.float32).eps + (n + tile * tile) * np.finfo(np.float64).eps
+            slack = ROUNDING * rounding * np.sqrt(n + 1.0) * scale
+            finite = np.isfinite(sums).all(axis=0)
+            mean_bad = ~finite | (np.abs(total - sums.mean(axis=0)) > slack)  # (5)
+            varies = np.sqrt(((sums - sums.mean(axis=0)) ** 2).sum(axis=0))
+            spread_bad = finite & ~mean_bad & (varies > spread + slack)  # (6)
+        return mean_bad, spread_bad
 
 
 def _check_values(name: str, values: np.ndarray, allowed: str, good: np.ndarray) -> None:
@@ -219,6 +241,15 @@ def _check_values(name: str, values: np.ndarray, allowed: str, good: np.ndarray)
     bad = int((~good).sum())
     where = f"pixel x {x}, y {y}, channel {c}" + (f", and {bad - 1} more" if bad > 1 else "")
     raise WelchInputError(f"{name} must be {allowed}, got {float(values[y, x, c])!r} ({where})")
+
+
+def _tile_totals(values: np.ndarray, tile: int, grid: tuple[int, int], covered: tuple[int, int]) -> np.ndarray:
+    """Sums of `values` (H×W×C) over the `covered` pixels of each tile of a `grid` of `tile`-pixel tiles (the right
+    and bottom tiles partial where the tile does not divide them)."""
+    padded = np.zeros((grid[0] * tile, grid[1] * tile, values.shape[2]))
+    rows, cols = min(covered[0], grid[0] * tile), min(covered[1], grid[1] * tile)
+    padded[:rows, :cols] = values[:rows, :cols]
+    return padded.reshape(grid[0], tile, grid[1], tile, -1).sum(axis=(1, 3))
 
 
 def _block_sums(values: np.ndarray, factor: int, grid: tuple[int, int]) -> np.ndarray:
@@ -279,25 +310,72 @@ def pixel_paired(differences, pvalue_method: str = "exact") -> TTestResult:
     return _replace_variance(result, se2, df, pvalue_method)
 
 
-def tripwire(*runs) -> float:
+def moment_conflict(run) -> tuple[str, str] | None:
+    """Whether the pixel moments of `run` (a `TileStats` whose `pixels` are kept) contradict its tile sums: (the
+    array, one line saying how) or None. Moments of the same passes as the tile sums satisfy, per tile-channel,
+
+        sum_p mean_p = the mean of the tile sums over the passes                                        (5)
+        sqrt(M2 of the tile sums) <= sum_p sqrt(M2_p)                                                   (6)
+
+    up to rounding (`ROUNDING`): (5) because a tile sum is the sum of its pixels; (6) because the tile
+    sums' M2 is the sum of the pixels' co-moments, each at most sqrt(M2_p M2_q) (Cauchy-Schwarz), so tile sums
+    that vary need pixels that vary. Nothing else about the spread is certain (pixels may correlate either way):
+    the `tripwire` judges the rest. A tile-channel with non-finite tile sums contradicts (5): a pass with NaN or inf
+    pixels leaves a run without moments."""
+    if run.pixels is None or run.n == 0:
+        return None
+    mean_bad, spread_bad = run.pixels.conflict(run.tile, (run.tiles_y, run.tiles_x), run.covered, run.sums)
+    total = mean_bad.size
+    if mean_bad.any():
+        return "pixel_mean", (f"in {int(mean_bad.sum())} of {total} tile-channels the pixels' means do not add up to "
+                              "the mean tile sum")  # fmt: skip
+    if spread_bad.any():
+        return "pixel_m2", (f"in {int(spread_bad.sum())} of {total} tile-channels the tile sums vary more than "
+                            "their pixels can")  # fmt: skip
+    return None
+
+
+@dataclass(frozen=True)
+class Tripwire:
+    """What the `tripwire` measured: the median ratio of the tile sums' variance to V, and the tile-channels
+    whose tile sums vary while V is 0 (or NaN), which moments of their passes can't give (`moment_conflict`)."""
+
+    ratio: float  # the median over tile-channels of s²(tile sums) / V over that of chi²(n - 1) / (n - 1); NaN: none
+    contradicted: int = 0
+
+    def refusal(self) -> str | None:
+        """Why the pixel test is refused, in one line, or None."""
+        if self.contradicted:
+            return (f"refused: in {self.contradicted} tile-channels the tile sums vary while their pixels do not "
+                    "(pixel moments that contradict the passes)")  # fmt: skip
+        if self.ratio > TRIPWIRE_RATIO:
+            return (f"refused: the tile sums vary {self.ratio:.3g}x more than their pixels say (pixels correlated "
+                    "within a pass)")  # fmt: skip
+        return None
+
+
+def tripwire(*runs) -> Tripwire:
     """How much more the tile sums vary than their pixels say, pooled over `runs` (both sides, or a paired run's
     differences): the median over valid tile-channels of s²(tile sums) / V, divided by the median of
     chi²(n - 1) / (n - 1) (what independent normal pixels give). About 1 where (1) holds, below where pixels are
     negatively correlated; gross positive correlation (the scrambling distance 0.1: about 100) shows at 2 passes a
-    side. NaN with nothing to measure."""
+    side. NaN with nothing to measure. A tile-channel whose tile sums vary while its V is 0 or NaN is no ratio
+    but a contradiction (tile sums of pixels that never vary can't vary): it is counted, and refuses."""
     from scipy import stats as scipy_stats
 
-    ratios = []
+    ratios, contradicted = [], 0
     for run in runs:
         if run.n < 2:
             continue
         v, _ = run.pixel_terms()
         with np.errstate(divide="ignore", invalid="ignore"):
             r = run.variance / v
+            contradicted += int(((run.variance > 0) & ~(v > 0)).sum())
         r = r[np.isfinite(r) & (v > 0)]
         if r.size:
             ratios.append(r / (scipy_stats.chi2.median(run.n - 1) / (run.n - 1)))
-    return float(np.median(np.concatenate(ratios))) if ratios else float("nan")
+    ratio = float(np.median(np.concatenate(ratios))) if ratios else float("nan")
+    return Tripwire(ratio, contradicted)
 
 
 @dataclass(frozen=True)
@@ -342,8 +420,8 @@ def pixel_use(ref, test, kind: str, mode: str, differences=None) -> PixelUse:
     """Whether `ref` and `test` (`TileStats`) are tested by their pixel variances under `mode` (see
     `PIXEL_MODES`), and why: the runs must keep pixel moments (a paired run: the moments of each pixel's
     difference per seed, `differences`, a `TileStats` of the per-seed differences that keeps them), have two
-    passes a side, be eligible by their records (`pixel_eligibility`, unless the user vouches with "on"), and
-    pass the `tripwire`."""
+    passes a side, be eligible by their records (`pixel_eligibility`, unless the user vouches with "on"), keep
+    moments that can be those of their passes (`moment_conflict`), and pass the `tripwire`."""
     if mode not in PIXEL_MODES:
         raise WelchInputError(f"`pixel_variance` must be one of {PIXEL_MODES}, got {mode!r}")
     if mode == "off":
@@ -360,9 +438,13 @@ def pixel_use(ref, test, kind: str, mode: str, differences=None) -> PixelUse:
             reason = pixel_eligibility(run.info)
             if reason is not None:
                 return PixelUse(mode, False, f"the {side}: {reason}")
-    ratio = tripwire(differences) if kind == "paired" else tripwire(ref, test)
-    if ratio > TRIPWIRE_RATIO:
-        return PixelUse(mode, False, f"refused: the tile sums vary {ratio:.3g}x more than their pixels say (pixels "
-                        "correlated within a pass)", ratio=ratio)  # fmt: skip
+    for side, run in (("reference", ref), ("test", test)):
+        conflict = moment_conflict(run)
+        if conflict is not None:
+            return PixelUse(mode, False, f"refused: the {side}'s pixel moments contradict its tile sums: {conflict[1]}")
+    measured = tripwire(differences) if kind == "paired" else tripwire(ref, test)
+    refusal = measured.refusal()
+    if refusal is not None:
+        return PixelUse(mode, False, refusal, ratio=measured.ratio)
     why = "vouched for (--pixel-variance on)" if mode == "on" else "Cycles passes with independent pixels"
-    return PixelUse(mode, True, why, ratio=ratio)
+    return PixelUse(mode, True, why, ratio=measured.ratio)

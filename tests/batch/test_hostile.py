@@ -217,3 +217,23 @@ def test_a_reference_of_another_case_is_named_and_not_used(tmp_path):
     (refs / "a.npz").write_bytes((refs / "a.npz").read_bytes()[:100])  # truncated: that case alone fails, named
     outcomes = suites.run_suite(suite, list(suite.cases), refs, tmp_path / "out2", lambda n: None, say=lambda _: 0)
     assert outcomes[0].status == "error" and str(refs / "a.npz") in outcomes[0].message
+
+
+def test_pixel_moments_that_contradict_their_tile_sums_are_refused_by_compare(tmp_path, capsys):
+    """8 v 8 unbiased passes whose files' pixel M2s are all zeros: `compare --pixel-variance on` said `biased`
+    ('a difference spread over many tiles'), exit 1; now the file is refused in one line naming it and the array."""
+    rng = np.random.default_rng(41)
+    paths = []
+    for side, first in (("ref", 0), ("test", 100)):
+        run = wc.TileStats(32, 32, 16, 3, keep_pixel_moments=True)
+        for seed in range(first, first + 8):
+            run.add_pass(rng.gamma(2.0, 0.5, (32, 32, 3)).astype(np.float32), seed)
+        run.pixels.m2[:] = 0.0
+        paths.append(str(tmp_path / f"{side}.npz"))
+        wc.save_stats(paths[-1], run)
+    code = cli.main(["compare", *paths, "--pixel-variance", "on", "--out", str(tmp_path / "r")])
+    assert code == Exit.USAGE
+    assert capsys.readouterr().err == (
+        f"error: {paths[0]!r} is damaged: 'pixel_m2' contradicts its tile sums: in 12 of 12 tile-channels the tile "
+        "sums vary more than their pixels can\n"
+    )

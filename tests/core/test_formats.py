@@ -476,6 +476,35 @@ def test_load_refuses_pixel_moments_that_are_not_finite_naming_the_array(tmp_pat
     expect_damaged(tmp_path / "moments.npz", arrays | {key: damaged}, first)
 
 
+def test_load_refuses_pixel_moments_that_contradict_the_tile_sums(tmp_path):
+    """All-zero pixel M2s beside tile sums that vary made `compare --pixel-variance on` call 8 v 8 unbiased passes
+    `biased`: moments must be those of the file's passes, (5) and (6) of `welch_core.pixels.moment_conflict`."""
+    run = moments_run()
+    arrays = good_arrays(run, tmp_path)
+    path = tmp_path / "moments.npz"
+    spread = "'pixel_m2' contradicts its tile sums: in {} of 45 tile-channels the tile sums vary more than their pixels"
+    expect_damaged(path, arrays | {"pixel_m2": np.zeros_like(arrays["pixel_m2"])}, spread.format(45))
+    expect_damaged(path, arrays | {"pixel_m2": arrays["pixel_m2"] * 1e-3}, spread.format(45))
+    one = arrays["pixel_m2"].copy()
+    one[8:16, 16:24, 2] = 0  # one tile-channel's pixels never vary
+    expect_damaged(path, arrays | {"pixel_m2": one}, spread.format(1))
+    means = "'pixel_mean' contradicts its tile sums: in {} of 45 tile-channels the pixels' means do not add up to the"
+    expect_damaged(path, arrays | {"pixel_mean": moments_run(seed=1).pixels.mean}, means.format(45))
+    shifted = arrays["pixel_mean"].copy()
+    shifted[0, 0, 0] += 0.05  # of a tile sum of about 64, whose passes spread by about 6
+    expect_damaged(path, arrays | {"pixel_mean": shifted}, means.format(1))
+    sums = arrays["sums"].copy()
+    sums[3, 1, 1, 0] = np.nan  # recorded as a non-finite pass, which keeps no moments
+    meta = json.loads(str(arrays["meta"])) | {"nonfinite_seeds": [run.seeds[3]]}
+    damaged = arrays | {"sums": sums, "meta": np.array(json.dumps(meta))}
+    expect_damaged(path, damaged, means.format(1))
+    # moments of the same passes agree within rounding: a bright offset, passes added one by one and merged
+    bright = moments_run(seed=2, n=5, offset=1e4).merge(moments_run(seed=3, n=3, offset=1e4))
+    for good in (run, bright, moments_run(seed=4, n=2).merge(moments_run(seed=5, n=9))):
+        save_stats(tmp_path / "good.npz", good)
+        assert_allclose(load_stats(tmp_path / "good.npz").pixels.m2, good.pixels.m2, rtol=0)
+
+
 def test_load_missing_path(tmp_path):
     path = tmp_path / "nothing.npz"
     with pytest.raises(StatsFileError, match=re.escape(f"statistics file {str(path)!r} does not exist")):

@@ -357,12 +357,38 @@ def test_the_tripwire_refuses_pixels_that_share_their_noise():
         return 1 + shared + 0.1 * rng.normal(0, 1, (n, SIZE, SIZE, 3))
 
     ref, test = run_of(correlated(2), range(2)), run_of(correlated(2), range(2, 4))
-    assert tripwire(ref, test) > 10 * TRIPWIRE_RATIO
+    assert tripwire(ref, test).ratio > 10 * TRIPWIRE_RATIO
     use = wc.compare(ref, test, pixel_variance="on").pixel_use
     assert not use.used and use.reason.startswith("refused: the tile sums vary ")
     assert use.reason.endswith("x more than their pixels say (pixels correlated within a pass)")
     independent = run_of(noisy(rng, 2), range(10, 12)), run_of(noisy(rng, 2), range(12, 14))
-    assert tripwire(*independent) < TRIPWIRE_RATIO
+    assert tripwire(*independent).ratio < TRIPWIRE_RATIO and tripwire(*independent).refusal() is None
+
+
+def test_moments_that_contradict_the_tile_sums_are_refused_not_tested():
+    """Pixel M2s of zero beside tile sums that vary made the tripwire skip every tile-channel (its ratio NaN) and
+    8 v 8 unbiased passes `biased`: tile sums of pixels that never vary can't vary, so the pixel test is refused,
+    whether the moments are a side's own or a paired run's differences."""
+    rng = np.random.default_rng(15)
+    ref, test = run_of(noisy(rng, 8), range(8)), run_of(noisy(rng, 8), range(8, 16))
+    assert wc.pixels.moment_conflict(test) is None
+    zero = wc.PixelMoments.of(test.pixels.mean, np.zeros(test.pixels.shape), test.n)
+    broken = wc.TileStats.from_sums(test.sums, test.seeds, SIZE, SIZE, TILE, CYCLES, pixels=zero)
+    assert wc.pixels.moment_conflict(broken) == (
+        "pixel_m2",
+        "in 48 of 48 tile-channels the tile sums vary more than their pixels can",
+    )
+    for mode in ("on", "auto"):
+        use = wc.compare(ref, broken, pixel_variance=mode).pixel_use
+        assert not use.used and use.reason == (
+            "refused: the test's pixel moments contradict its tile sums: in 48 of 48 tile-channels the tile sums "
+            "vary more than their pixels can"
+        )
+    measured = tripwire(ref, broken)  # the tripwire alone, as for a paired run's differences
+    assert measured.contradicted == 48 and measured.refusal() == (
+        "refused: in 48 tile-channels the tile sums vary while their pixels do not (pixel moments that contradict "
+        "the passes)"
+    )
 
 
 def test_the_looks_keep_the_pixel_df_and_say_what_they_used():
