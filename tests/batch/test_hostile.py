@@ -237,3 +237,33 @@ def test_pixel_moments_that_contradict_their_tile_sums_are_refused_by_compare(tm
         f"error: {paths[0]!r} is damaged: 'pixel_m2' contradicts its tile sums: in 12 of 12 tile-channels the tile "
         "sums vary more than their pixels can\n"
     )
+
+
+def test_a_blender_that_never_answers_is_said_to_be_waited_for_and_stopped_whole(tmp_path, monkeypatch):
+    """A --blender that only sleeps kept `check --scene corner --unpaired --blender ./hang.sh` silent for 45 s:
+    the 15 s line ("waiting for ...") covered a render process slow to start, not the binary's --version that
+    comes first. The same line now comes from there (seconds shortened here), then the one-line error, and
+    nothing the script started is left running."""
+    from batch.jobs import launch
+    from batch.jobs.job import RenderJob
+    from batch.jobs.side import Side
+
+    marker = tmp_path / "child.pid"
+    hang = tmp_path / "hang.sh"
+    hang.write_text(f"#!/bin/sh\nsleep 600 & echo $! > {marker}\nwait\n")
+    hang.chmod(0o755)
+    monkeypatch.setattr(launch, "START_NOTICE", 1.0)
+    monkeypatch.setattr(launch, "VERSION_TIMEOUT", 3.0)
+    said = []
+    side = Side("reference", RenderJob(str(tmp_path / "r.npz"), (0,), scene="corner", blender=str(hang)),
+                warn=said.append)  # fmt: skip
+    start = time.monotonic()
+    with pytest.raises(BatchError) as info:
+        side.start()
+    assert 3.0 <= time.monotonic() - start < 10
+    assert said == [f"reference: waiting for {hang} to answer --version (1 s so far; stopped at 3 s; Ctrl-C stops "
+                    "it now)"]  # fmt: skip
+    assert str(info.value) == f"--blender {hang} did not answer --version within 3 s"
+    stat = Path(f"/proc/{int(marker.read_text())}/stat")
+    time.sleep(0.5)  # the kill is sent; let it land
+    assert not stat.exists() or stat.read_text().rsplit(")", 1)[1].split()[0] == "Z"  # gone, or dead unreaped
