@@ -16,7 +16,8 @@ preview_sum    float32 (h/f, w/f, c), optional pixel_sum in block means of f x f
                                                brings the longer side to `PREVIEW_SIDE` or less; stored with
                                                pixel_sum where the image is larger (the report reads it alone)
 pixel_mean     float64 (h, w, c), optional     each pixel's mean over the passes, and its M2 (the sum of
-pixel_m2       float64 (h, w, c), optional     squared deviations): the pixel-variance test (`pixels`)
+pixel_m2       float64 (h, w, c), optional     squared deviations): the pixel-variance test (`pixels`);
+                                               checked against the sums (`pixels.moment_conflict`)
 =============  ==============================  ===========================================================
 
 Version 1 files (which also stored a mean and M2, and a mean image instead of the pixel sum) are still read;
@@ -46,7 +47,7 @@ import numpy as np
 
 from .colormap import shrink
 from .errors import StatsFileError, WelchInputError
-from .pixels import PixelMoments
+from .pixels import PixelMoments, moment_conflict
 from .tiles import MAX_IMAGE_SIDE, RunInfo, TileStats
 
 __all__ = [
@@ -392,16 +393,25 @@ class _Reader:
         elif pixels:
             pixel_sum = self.array("pixel_sum", "f", (height, width, channels), required=False)
         moments = self.pixel_moments(len(seeds), (height, width, channels)) if version > 1 else None
-        return TileStats.from_sums(sums, seeds.tolist(), height, width, tile, info, pixel_sum, edges, pixels=moments)
+        run = TileStats.from_sums(sums, seeds.tolist(), height, width, tile, info, pixel_sum, edges, pixels=moments)
+        self.check_pixel_moments(run)
+        return run
 
     def pixel_moments(self, n: int, shape: tuple) -> PixelMoments | None:
         if "pixel_mean" not in self.members and "pixel_m2" not in self.members:
             return None
         mean, m2 = (self.array(key, "f", shape) for key in ("pixel_mean", "pixel_m2"))
         try:
-            return PixelMoments.of(mean, m2, n)
+            return PixelMoments.of(mean, m2, n, names=("'pixel_mean'", "'pixel_m2'"))
         except WelchInputError as exc:
             raise self.fail(str(exc)) from None
+
+    def check_pixel_moments(self, run: TileStats) -> None:
+        """The pixel moments must be those of the file's passes (`pixels.moment_conflict`): moments that contradict
+        the tile sums (all zeros, another run's) made `compare` report bias between unbiased passes."""
+        conflict = moment_conflict(run)
+        if conflict is not None:
+            raise self.fail(f"{conflict[0]!r} contradicts its tile sums: {conflict[1]}")
 
     def scalar_or_none(self, key: str, kinds: str):
         try:

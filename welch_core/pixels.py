@@ -34,9 +34,10 @@ Hypothesis and family: per tile-channel H0 is that the two sides' expected tile 
 test; the pixel test replaces the tile test's p-value of a tile-channel and the family (`comparison`, `looks`) is
 unchanged. Its assumption, (1), is not tested by the data at a few passes, so it is used only where the run's own
 record proves the settings under which it was measured (`pixel_eligibility`), and refused where the data contradict it
-grossly (`tripwire`). Where (3) is small the tile's pixels are skewed (a few pixels carry the tile) and
-Satterthwaite's df, which assumes normal pixels, overstates the evidence: below `MIN_PIXEL_DF` a tile-channel
-keeps the tile test (measured: docs/findings/pixel_variance.md).
+grossly (`tripwire`) or the moments can't be those of the tile sums' passes (`moment_conflict`). Where (3) is
+small the tile's pixels are skewed (a few pixels carry the tile) and Satterthwaite's df, which assumes normal
+pixels, overstates the evidence: below `MIN_PIXEL_DF` a tile-channel keeps the tile test (measured:
+docs/findings/pixel_variance.md).
 
 numpy only (scipy where a p-value is computed): the moments are accumulated inside a stock Blender.
 """
@@ -54,11 +55,18 @@ from .ttest import Reason, TTestResult, paired_from_stats, two_sided_pvalue, wel
 
 __all__ = [
     "INDEPENDENT_PATTERNS",
+    "LOCAL_MARGIN",
     "MIN_PIXEL_DF",
     "PIXEL_MODES",
+    "ROUNDING",
+    "TRIPWIRE_ALPHA",
     "TRIPWIRE_RATIO",
     "PixelMoments",
     "PixelUse",
+    "Tripwire",
+    "global_limit",
+    "local_limit",
+    "moment_conflict",
     "pixel_eligibility",
     "pixel_paired",
     "pixel_use",
@@ -93,9 +101,27 @@ INDEPENDENT_PATTERNS = frozenset(
     }
 )
 
+#: The tripwire's level: the chance, under independent normal pixels, that one comparison's tripwire refuses by
+#: its median over a few tiles (`global_limit`), or by some tile-channel of some size (`local_limit`, Bonferroni
+#: over the tile-channels, before `LOCAL_MARGIN`).
+TRIPWIRE_ALPHA = 1e-4
+#: The factor on the local limit that covers what rendered independent pixels do beyond normal ones: heavy-tailed
+#: tile sums (a dark, defocused tile of sparse hits: excess kurtosis 4.7 where chi² assumes 0) vary more than
+#: chi²(n - 1) says. Measured on the cached pools of every built-in scene (`benchmarks.studies.local_tripwire`;
+#: docs/findings/pixel_variance.md): 1.5 was passed once in 68 600 A/A trials, by that tile at D = 1.07, within
+#: its permutation null.
+LOCAL_MARGIN = 2.0
+
+#: How far the identities (5) and (6) of `moment_conflict` may miss: this many times the rounding of the sums
+#: involved, (tile x float32's epsilon + (passes + pixels of a tile) x float64's), x sqrt(passes + 1) x the tile's
+#: scale, sum_p (|mean_p| + sqrt(M2_p)), which bounds every pass's sum of |pixel|. A float32 pass's tile sums add
+#: its rows' partial sums of `tile` pixels in float32 (`tiles.tile_sums`); a Welford mean and M2 and the float64
+#: sums round at most linearly in the values summed; 4 to spare. A damaged or foreign array misses by far more.
+ROUNDING = 4.0
+
 #: The tripwire's limit on the median over tile-channels of (tile-sum variance / V), each divided by the median
 #: of its null distribution chi²(n - 1) / (n - 1): independent pixels give about 1, the scrambling distance 0.1
-#: about 100 (`tripwire`).
+#: about 100 (`tripwire`); higher where few tiles make the median itself noisy (`global_limit`).
 TRIPWIRE_RATIO = 3.0
 
 
@@ -115,13 +141,17 @@ class PixelMoments:
         self._merged: tuple | None = None  # (the other moments, their n, `merged` with them)
 
     @classmethod
-    def of(cls, mean: npt.ArrayLike, m2: npt.ArrayLike, n: int) -> PixelMoments:
-        """Moments read back (a statistics file) or computed elsewhere; checked."""
+    def of(
+        cls, mean: npt.ArrayLike, m2: npt.ArrayLike, n: int, names: tuple[str, str] = ("`mean`", "`m2`")
+    ) -> PixelMoments:
+        """Moments read back (a statistics file) or computed elsewhere; checked: every mean finite, every M2
+        finite and >= 0, or WelchInputError naming the array as `names` say (a file's arrays by their keys)."""
         mean, m2 = np.asarray(mean, dtype=np.float64), np.asarray(m2, dtype=np.float64)
         if mean.ndim != 3 or mean.shape != m2.shape:
             raise WelchInputError(f"pixel moments must be two H×W×C arrays, got {mean.shape} and {m2.shape}")
-        if not (np.isfinite(m2).all() and (m2 >= 0).all()):
-            raise WelchInputError("pixel M2 must be finite and >= 0")
+        _check_values(names[0], mean, "finite", np.isfinite(mean))
+        with np.errstate(invalid="ignore"):
+            _check_values(names[1], m2, "finite and >= 0", np.isfinite(m2) & (m2 >= 0))
         out = cls(*mean.shape)
         out.n, out.mean, out.m2 = int(n), mean, m2
         return out
@@ -196,15 +226,51 @@ class PixelMoments:
             factor = tile // base[0]
             self._memo[key] = tuple(_block_sums(a, factor, grid) for a in self._memo[base])
             return self._memo[key]
-        s2 = np.zeros((grid[0] * tile, grid[1] * tile, self.shape[2]))
-        rows, cols = min(covered[0], grid[0] * tile), min(covered[1], grid[1] * tile)
-        if about_zero:
-            s2[:rows, :cols] = (self.m2 / self.n + self.mean**2)[:rows, :cols]
-        else:
-            s2[:rows, :cols] = self.variance()[:rows, :cols]
-        blocks = s2.reshape(grid[0], tile, grid[1], tile, -1)
-        self._memo[key] = blocks.sum(axis=(1, 3)), (blocks * blocks).sum(axis=(1, 3))
+        s2 = self.m2 / self.n + self.mean**2 if about_zero else self.variance()
+        self._memo[key] = _tile_totals(s2, tile, grid, covered), _tile_totals(s2 * s2, tile, grid, covered)
         return self._memo[key]
+
+    def conflict(self, tile: int, grid: tuple[int, int], covered: tuple[int, int], sums: np.ndarray):
+        """Per tile-channel of a `grid` of `tile`-pixel tiles over the `covered` pixels, whether these moments can
+        be those of the passes whose tile sums are `sums` (n, rows, columns, channels), by (5) and (6) of
+        `moment_conflict`: two boolean arrays (the means, the spread), True where they contradict them."""
+        with np.errstate(invalid="ignore", over="ignore"):
+            sd = np.sqrt(self.m2)
+            total, spread = _tile_totals(self.mean, tile, grid, covered), _tile_totals(sd, tile, grid, covered)
+            scale = _tile_totals(np.abs(self.mean), tile, grid, covered) + spread
+            n = len(sums)
+            rounding = tile * np.finfo(np.float32).eps + (n + tile * tile) * np.finfo(np.float64).eps
+            slack = ROUNDING * rounding * np.sqrt(n + 1.0) * scale
+            finite = np.isfinite(sums).all(axis=0)
+            mean_bad = ~finite | (np.abs(total - sums.mean(axis=0)) > slack)  # (5)
+            varies = np.sqrt(((sums - sums.mean(axis=0)) ** 2).sum(axis=0))
+            spread_bad = finite & ~mean_bad & (varies > spread + slack)  # (6)
+        return mean_bad, spread_bad
+
+
+def _check_values(name: str, values: np.ndarray, allowed: str, good: np.ndarray) -> None:
+    """WelchInputError naming `name`, what it must be and its first bad value with where it is, unless all `good`."""
+    if good.all():
+        return
+    y, x, c = np.unravel_index(int(np.argmin(good)), good.shape)
+    bad = int((~good).sum())
+    where = f"pixel x {x}, y {y}, channel {c}" + (f", and {bad - 1} more" if bad > 1 else "")
+    raise WelchInputError(f"{name} must be {allowed}, got {float(values[y, x, c])!r} ({where})")
+
+
+def _tile_totals(values: np.ndarray, tile: int, grid: tuple[int, int], covered: tuple[int, int]) -> np.ndarray:
+    """Sums of `values` (H×W×C) over the `covered` pixels of each tile of a `grid` of `tile`-pixel tiles (the right
+    and bottom tiles partial where the tile does not divide them)."""
+    height, width, channels = grid[0] * tile, grid[1] * tile, values.shape[2]
+    if values.shape[:2] == (height, width) and tuple(covered) == (height, width):
+        padded = np.ascontiguousarray(values, dtype=np.float64)
+    else:
+        padded = np.zeros((height, width, channels))
+        rows, cols = min(covered[0], height), min(covered[1], width)
+        padded[:rows, :cols] = values[:rows, :cols]
+    # The tile's rows first with a contiguous inner axis, then its columns: 4x faster than one sum over both.
+    rows_summed = padded.reshape(grid[0], tile, width * channels).sum(axis=1)
+    return rows_summed.reshape(grid[0], grid[1], tile, channels).sum(axis=2)
 
 
 def _block_sums(values: np.ndarray, factor: int, grid: tuple[int, int]) -> np.ndarray:
@@ -265,25 +331,138 @@ def pixel_paired(differences, pvalue_method: str = "exact") -> TTestResult:
     return _replace_variance(result, se2, df, pvalue_method)
 
 
-def tripwire(*runs) -> float:
-    """How much more the tile sums vary than their pixels say, pooled over `runs` (both sides, or a paired run's
-    differences): the median over valid tile-channels of s²(tile sums) / V, divided by the median of
-    chi²(n - 1) / (n - 1) (what independent normal pixels give). About 1 where (1) holds, below where pixels are
-    negatively correlated; gross positive correlation (the scrambling distance 0.1: about 100) shows at 2 passes a
-    side. NaN with nothing to measure."""
+def moment_conflict(run) -> tuple[str, str] | None:
+    """Whether the pixel moments of `run` (a `TileStats` whose `pixels` are kept) contradict its tile sums: (the
+    array, one line saying how) or None. Moments of the same passes as the tile sums satisfy, per tile-channel,
+
+        sum_p mean_p = the mean of the tile sums over the passes                                        (5)
+        sqrt(M2 of the tile sums) <= sum_p sqrt(M2_p)                                                   (6)
+
+    up to rounding (`ROUNDING`): (5) because a tile sum is the sum of its pixels; (6) because the tile
+    sums' M2 is the sum of the pixels' co-moments, each at most sqrt(M2_p M2_q) (Cauchy-Schwarz), so tile sums
+    that vary need pixels that vary. Nothing else about the spread is certain (pixels may correlate either way):
+    the `tripwire` judges the rest. A tile-channel with non-finite tile sums contradicts (5): a pass with NaN or inf
+    pixels leaves a run without moments."""
+    if run.pixels is None or run.n == 0:
+        return None
+    mean_bad, spread_bad = run.pixels.conflict(run.tile, (run.tiles_y, run.tiles_x), run.covered, run.sums)
+    total = mean_bad.size
+    if mean_bad.any():
+        return "pixel_mean", (f"in {int(mean_bad.sum())} of {total} tile-channels the pixels' means do not add up to "
+                              "the mean tile sum")  # fmt: skip
+    if spread_bad.any():
+        return "pixel_m2", (f"in {int(spread_bad.sum())} of {total} tile-channels the tile sums vary more than "
+                            "their pixels can")  # fmt: skip
+    return None
+
+
+@dataclass(frozen=True)
+class Tripwire:
+    """What the `tripwire` measured: the median ratio of the tile sums' variance to V over every tile-channel
+    (`ratio`) and its limit, the largest tile-channel's ratio against its local limit (`local`: above 1 refuses)
+    with the ratio itself, the limit and where it is, and the tile-channels whose tile sums vary while V is 0 (or
+    NaN), which moments of their passes can't give (`moment_conflict`)."""
+
+    ratio: float  # the median over tile-channels of s²(tile sums) / V over that of chi²(n - 1) / (n - 1); NaN: none
+    contradicted: int = 0
+    local: float = float("nan")  # the largest s²(tile sums) / V over its limit, of any tile-channel of any size
+    local_ratio: float = float("nan")  # that tile-channel's s²(tile sums) / V
+    local_limit: float = float("nan")  # and its limit (`local_limit`)
+    where: str = ""  # that tile-channel, in words
+    ratio_limit: float = TRIPWIRE_RATIO  # `global_limit`
+
+    def refusal(self) -> str | None:
+        """Why the pixel test is refused, in one line, or None."""
+        if self.contradicted:
+            return (f"refused: in {self.contradicted} tile-channels the tile sums vary while their pixels do not "
+                    "(pixel moments that contradict the passes)")  # fmt: skip
+        if self.ratio > self.ratio_limit:
+            return (f"refused: the tile sums vary {self.ratio:.3g}x more than their pixels say (pixels correlated "
+                    "within a pass)")  # fmt: skip
+        if self.local > 1:
+            return (f"refused: the tile sums of {self.where} vary {self.local_ratio:.3g}x more than their pixels say, "
+                    f"past the {self.local_limit:.3g}x independent pixels reach (pixels correlated within a pass "
+                    "there)")  # fmt: skip
+        return None
+
+
+def global_limit(n: int, tiles: int) -> float:
+    """The largest median ratio (`Tripwire.ratio`) the tripwire allows over `tiles` tiles of runs of `n` passes:
+    `TRIPWIRE_RATIO`, or where the tiles are few, the upper `TRIPWIRE_ALPHA` point of the median of `tiles` values
+    of chi²(n - 1) over its median, which independent normal pixels pass with that chance (a tile's channels share
+    its noise: counted once). At 2 passes a side of a 32x32 image in 16-px tiles (8 tiles) it is 9.7: the median
+    of so few passed 3 in 9 of 100 A/A trials of the diffuse corner."""
+    from scipy import optimize
     from scipy import stats as scipy_stats
 
-    ratios = []
+    k, df = (tiles + 1) // 2, n - 1  # the median passes x where k of the tiles do (numpy's median: at most the kth)
+    p = optimize.brentq(lambda q: scipy_stats.binom.sf(k - 1, tiles, q) - TRIPWIRE_ALPHA, 1e-300, 0.5, xtol=1e-300)
+    return max(TRIPWIRE_RATIO, float(scipy_stats.chi2.isf(p, df) / scipy_stats.chi2.median(df)))
+
+
+def local_limit(n: int, count: int) -> float:
+    """The largest s²(tile sums) / V one of `count` tile-channels of a run of `n` passes is allowed (the local
+    tripwire): `LOCAL_MARGIN` x the upper `TRIPWIRE_ALPHA` / `count` point of chi²(n - 1) / (n - 1), what one
+    tile-channel of independent normal pixels exceeds with that chance (V taken as exact: with the pixels' many
+    degrees of freedom it nearly is; where a few pixels carry it, s² and V rise together and the ratio nears 1)."""
+    from scipy import stats as scipy_stats
+
+    return LOCAL_MARGIN * float(scipy_stats.chi2.isf(TRIPWIRE_ALPHA / max(count, 1), n - 1)) / (n - 1)
+
+
+def tripwire(*runs) -> Tripwire:
+    """How much more the tile sums vary than their pixels say, pooled over `runs` (both sides, or a paired run's
+    differences), as a whole and locally:
+
+    * the median over valid tile-channels of s²(tile sums) / V, divided by the median of chi²(n - 1) / (n - 1)
+      (what independent normal pixels give): about 1 where (1) holds, below where pixels are negatively
+      correlated; gross positive correlation everywhere (the scrambling distance 0.1: about 100) shows at 2 passes
+      a side; above `global_limit` (3, more over a few tiles) refuses;
+    * each tile-channel of every tile size (the stored tile, 2x, 4x, ... up to the whole image, as the comparison
+      tests them) on its own: s²(tile sums) / V above `local_limit` refuses, which catches pixels that share their
+      noise in one region only (a median over the image does not move for one tile in four);
+    * a tile-channel whose tile sums vary while its V is 0 or NaN is no ratio but a contradiction (tile sums of
+      pixels that never vary can't vary): it is counted, and refuses.
+
+    Cheap: the coarser tiles' V are block sums of the finer ones' (`PixelMoments.terms`, kept for the comparison
+    that follows) and their tile sums block sums of the stored ones."""
+    from scipy import stats as scipy_stats
+
+    ratios, contradicted, local, tiles = [], 0, [], 0
     for run in runs:
         if run.n < 2:
             continue
-        v, _ = run.pixel_terms()
-        with np.errstate(divide="ignore", invalid="ignore"):
-            r = run.variance / v
-        r = r[np.isfinite(r) & (v > 0)]
-        if r.size:
-            ratios.append(r / (scipy_stats.chi2.median(run.n - 1) / (run.n - 1)))
-    return float(np.median(np.concatenate(ratios))) if ratios else float("nan")
+        factor = 1
+        while True:
+            coarse = run if factor == 1 else run.retile(factor)
+            v, _ = coarse.pixel_terms()
+            with np.errstate(divide="ignore", invalid="ignore"):
+                r = coarse.variance / v
+            valid = np.isfinite(r) & (v > 0)
+            if factor == 1:  # a coarser tile contradicts only where a stored one does
+                contradicted += int(((coarse.variance > 0) & ~(v > 0)).sum())
+                tiles += int(valid.any(axis=-1).sum())
+                if valid.any():
+                    ratios.append(r[valid] / (scipy_stats.chi2.median(run.n - 1) / (run.n - 1)))
+            if valid.any():
+                local.append((run.n, coarse.tile, int(valid.sum()), np.where(valid, r, -np.inf)))
+            if max(run.tiles_y, run.tiles_x) <= factor:
+                break
+            factor *= 2
+    if not local:
+        return Tripwire(float("nan"), contradicted)
+    ratio = float(np.median(np.concatenate(ratios))) if ratios else float("nan")
+    ratio_limit = global_limit(min(entry[0] for entry in local), tiles)
+    count = sum(entry[2] for entry in local)
+    worst = (-np.inf, 0.0, 0.0, "")
+    for n, tile, _, r in local:
+        limit = local_limit(n, count)
+        index = np.unravel_index(int(np.argmax(r)), r.shape)
+        if r[index] / limit > worst[0]:
+            row, col, channel = (int(i) for i in index)
+            where = f"the {tile}x{tile} tile at x {col * tile}, y {row * tile}, channel {channel}"
+            worst = (float(r[index] / limit), float(r[index]), limit, where)
+    return Tripwire(ratio, contradicted, *worst, ratio_limit=ratio_limit)
 
 
 @dataclass(frozen=True)
@@ -328,8 +507,8 @@ def pixel_use(ref, test, kind: str, mode: str, differences=None) -> PixelUse:
     """Whether `ref` and `test` (`TileStats`) are tested by their pixel variances under `mode` (see
     `PIXEL_MODES`), and why: the runs must keep pixel moments (a paired run: the moments of each pixel's
     difference per seed, `differences`, a `TileStats` of the per-seed differences that keeps them), have two
-    passes a side, be eligible by their records (`pixel_eligibility`, unless the user vouches with "on"), and
-    pass the `tripwire`."""
+    passes a side, be eligible by their records (`pixel_eligibility`, unless the user vouches with "on"), keep
+    moments that can be those of their passes (`moment_conflict`), and pass the `tripwire`."""
     if mode not in PIXEL_MODES:
         raise WelchInputError(f"`pixel_variance` must be one of {PIXEL_MODES}, got {mode!r}")
     if mode == "off":
@@ -346,9 +525,13 @@ def pixel_use(ref, test, kind: str, mode: str, differences=None) -> PixelUse:
             reason = pixel_eligibility(run.info)
             if reason is not None:
                 return PixelUse(mode, False, f"the {side}: {reason}")
-    ratio = tripwire(differences) if kind == "paired" else tripwire(ref, test)
-    if ratio > TRIPWIRE_RATIO:
-        return PixelUse(mode, False, f"refused: the tile sums vary {ratio:.3g}x more than their pixels say (pixels "
-                        "correlated within a pass)", ratio=ratio)  # fmt: skip
+    for side, run in (("reference", ref), ("test", test)):
+        conflict = moment_conflict(run)
+        if conflict is not None:
+            return PixelUse(mode, False, f"refused: the {side}'s pixel moments contradict its tile sums: {conflict[1]}")
+    measured = tripwire(differences) if kind == "paired" else tripwire(ref, test)
+    refusal = measured.refusal()
+    if refusal is not None:
+        return PixelUse(mode, False, refusal, ratio=measured.ratio)
     why = "vouched for (--pixel-variance on)" if mode == "on" else "Cycles passes with independent pixels"
-    return PixelUse(mode, True, why, ratio=ratio)
+    return PixelUse(mode, True, why, ratio=measured.ratio)

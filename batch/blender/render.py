@@ -243,6 +243,20 @@ def check_fixed_settings(scene, spp: int, resolution, overrides: list[dict], pat
             )
 
 
+def check_sample_subset(scene, spp: int) -> None:
+    """Raise RenderSetupError where the scene renders a subset of samples that starts at or past a pass's `spp`
+    (``cycles.use_sample_subset`` with ``cycles.sample_offset`` >= spp, from the .blend or an override): Cycles then
+    renders no sample and every pass is black (measured, 5.0.1: offsets 2 and 4 at 2 spp), which a comparison can
+    only call inconclusive. A subset within the samples renders (lint says what it does to independence)."""
+    cycles = scene.cycles
+    offset = getattr(cycles, "sample_offset", 0)
+    if getattr(cycles, "use_sample_subset", False) and offset >= spp:
+        raise RenderSetupError(
+            f"cycles.use_sample_subset is on with cycles.sample_offset {offset}, at or past the {spp} samples of a "
+            "pass: every pass would render black (turn it off: --set cycles.use_sample_subset=False)"
+        )
+
+
 def layer_names(scene: bpy.types.Scene, lobes: tuple[str, ...]) -> list[str]:
     """The layers a pass of `scene` rendered with `lobes` has (`batch.lobes.layers_from_channels` order)."""
     names = [lobe for lobe in lobes if lobe in COMPONENTS]

@@ -50,6 +50,7 @@ def prepare_scene(job: RenderJob, warn=None):
             warn(f"{change['path']} was {change['old']!r} in the scene; passes render with {change['new']!r}")
     applied = apply_overrides(scene, overrides)
     render.check_fixed_settings(scene, job.spp, job.resolution, applied, job.sampling_pattern)
+    render.check_sample_subset(scene, job.spp)
     if "lightgroups" in job.lobes:
         render.add_named_lightgroups(scene)
         if not render.layer_names(scene, ("lightgroups",)) and warn is not None:

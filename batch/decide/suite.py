@@ -190,18 +190,12 @@ def load_suite(name: str) -> Suite:
     header = data.get("suite", {})
     if not isinstance(header, dict):
         header, _ = {}, problems.append("[suite] must be a table")
-    if set(header) - {"name", "alpha", "tolerance"}:
-        problems.append(f"unknown key {sorted(set(header) - {'name', 'alpha', 'tolerance'})[0]!r} in [suite]")
-    alpha, tolerance = DEFAULT_ALPHA, DEFAULT_TOLERANCE
-    try:
-        alpha = options.OPTIONS["alpha"].convert("[suite] alpha", header.get("alpha", DEFAULT_ALPHA))
-    except BatchError as exc:
-        problems.append(str(exc))
-    try:
-        if "tolerance" in header:
-            tolerance = options.OPTIONS["tolerance"].convert("[suite] tolerance", header["tolerance"])
-    except BatchError as exc:
-        problems.append(str(exc))
+    known = {"name", *(option.key for option in options.SUITE_OPTIONS)}
+    if set(header) - known:
+        problems.append(f"unknown key {sorted(set(header) - known)[0]!r} in [suite]")
+    declared = options.from_suite_table(header, problems)  # alpha and tolerance, checked as a case's
+    alpha = declared.get("alpha", DEFAULT_ALPHA)
+    tolerance = declared.get("tolerance", DEFAULT_TOLERANCE)
     suite_name = header.get("name", path.stem)
     try:
         suite_name = options.text("[suite] name", suite_name)

@@ -9,7 +9,6 @@ The driver of a render side (`batch.jobs.side`) starts its processes here. Nothi
 from __future__ import annotations
 
 import collections
-import functools
 import os
 import queue
 import re
@@ -120,22 +119,48 @@ def job_command(
 #: Seconds a `--blender` has to answer ``--version`` (a binary that hangs is refused, not waited for).
 VERSION_TIMEOUT = 60.0
 
+#: Seconds of silence at start-up after which the user is told what the run waits for (a render process that
+#: has not started rendering, a program that has not answered what it is).
+START_NOTICE = 15.0
 
-def _ask(option: str, argv: list[str], asking: str) -> subprocess.CompletedProcess:
+
+def _ask(option: str, argv: list[str], asking: str, notice=None) -> subprocess.CompletedProcess:
     """Run a program the user named (`option` PATH) to ask it what it is, in one line of BatchError when it can't
-    be run or does not answer within `VERSION_TIMEOUT`. No PYTHONPATH or PYTHONHOME of this Python reaches it."""
+    be run or does not answer within `VERSION_TIMEOUT`; `notice`, where given, is called with one line saying what
+    the run waits for once it has been silent for `START_NOTICE` seconds. It runs in a process group of its own,
+    killed whole when it does not answer (or the wait is interrupted): a wrapper script's children too. No
+    PYTHONPATH or PYTHONHOME of this Python reaches it."""
     path = argv[0]
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
     try:
-        return subprocess.run(argv, capture_output=True, text=True, errors="replace", timeout=VERSION_TIMEOUT, env=env)
+        process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, errors="replace",
+                                   env=env, start_new_session=True)  # fmt: skip
     except FileNotFoundError:
         raise BatchError(f"{option} {path}: no such program") from None
     except PermissionError:
         raise BatchError(f"{option} {path}: not executable") from None
-    except subprocess.TimeoutExpired:
-        raise BatchError(f"{option} {path} did not answer {asking} within {VERSION_TIMEOUT:.0f} s") from None
     except OSError as exc:
         raise BatchError(f"{option} {path}: can't run it ({exc.strerror or exc})") from None
+    with process:
+        try:
+            first = min(START_NOTICE, VERSION_TIMEOUT) if notice is not None else VERSION_TIMEOUT
+            try:
+                out, err = process.communicate(timeout=first)
+            except subprocess.TimeoutExpired:
+                if notice is None or first >= VERSION_TIMEOUT:
+                    raise
+                notice(f"waiting for {path} to answer {asking} ({first:.0f} s so far; stopped at "
+                       f"{VERSION_TIMEOUT:.0f} s; Ctrl-C stops it now)")  # fmt: skip
+                out, err = process.communicate(timeout=VERSION_TIMEOUT - first)
+        except subprocess.TimeoutExpired:
+            raise BatchError(f"{option} {path} did not answer {asking} within {VERSION_TIMEOUT:.0f} s") from None
+        finally:
+            if process.poll() is None:
+                try:
+                    os.killpg(process.pid, signal.SIGKILL)
+                except (ProcessLookupError, PermissionError):
+                    pass
+    return subprocess.CompletedProcess(argv, process.returncode, out, err)
 
 
 #: The bpy release that runs on each Python, as the `cycles` extra of pyproject.toml installs it
@@ -170,11 +195,21 @@ def require_bpy(job: RenderJob) -> None:
         raise BatchError(no_bpy())
 
 
-@functools.cache
-def blender_version(path: str) -> str:
+#: What `blender_version` and `bpy_version` found, by path: each program is asked once.
+_ANSWERS: dict[tuple[str, str], str] = {}
+
+
+def blender_version(path: str, notice=None) -> str:
     """The version a Blender binary reports (``Blender 4.5.4 LTS``), checked once per path: BatchError in one line
-    when `path` can't be run, hangs, crashes, or answers ``--version`` with anything but a Blender's banner."""
-    done = _ask("--blender", [path, "--version"], "--version")
+    when `path` can't be run, hangs, crashes, or answers ``--version`` with anything but a Blender's banner.
+    `notice`: see `_ask`."""
+    if ("blender", path) not in _ANSWERS:
+        _ANSWERS["blender", path] = _blender_banner(path, notice)
+    return _ANSWERS["blender", path]
+
+
+def _blender_banner(path: str, notice) -> str:
+    done = _ask("--blender", [path, "--version"], "--version", notice)
     banner = next((line.strip() for line in done.stdout.splitlines() if line.startswith("Blender ")), None)
     if done.returncode != 0 or banner is None or not any(c.isdigit() for c in banner):
         said = " ".join(done.stdout.split())[:80] or f"nothing, exit code {done.returncode}"
@@ -198,12 +233,17 @@ else:
 """
 
 
-@functools.cache
-def bpy_version(path: str) -> str:
+def bpy_version(path: str, notice=None) -> str:
     """The bpy release of the Python interpreter `path` (``bpy 4.5.4 (build a1b2c3)``), checked once per path:
     BatchError in one line when `path` can't be run, hangs, is not a Python, has no bpy module, or one older than
-    `OLDEST_BPY`."""
-    done = _ask("--python", [path, "-c", _PROBE], "which bpy it has")
+    `OLDEST_BPY`. `notice`: see `_ask`."""
+    if ("python", path) not in _ANSWERS:
+        _ANSWERS["python", path] = _bpy_release(path, notice)
+    return _ANSWERS["python", path]
+
+
+def _bpy_release(path: str, notice) -> str:
+    done = _ask("--python", [path, "-c", _PROBE], "which bpy it has", notice)
     said = dict(line.split(" ", 1) for line in done.stdout.splitlines() if " " in line)
     if "python" not in said:
         text = " ".join((done.stdout + done.stderr).split())[:80] or f"nothing, exit code {done.returncode}"

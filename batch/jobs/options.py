@@ -1,10 +1,11 @@
 """The options of a job and of a check, declared once: each `Option` says its name on the command line and in a
 suite file, its type and limits, its default, its help, which commands take it (with the default and help a
 command gives it where they differ) and whether the test side of a check takes its own value. The command
-line's parsers (`add_options`), a suite file's case keys and defaults (`from_mapping`, `default`) and the Blender
-add-on's properties read them here, and one function checks each value however it arrives (a string on the
-command line, a TOML value, a panel property), with the same one-line error naming the option as the user wrote
-it (``--spp`` on the command line, ``'spp'`` in a suite file).
+line's parsers (`add_options`), a suite file's case keys and defaults (`from_mapping`, `default`), its ``[suite]``
+table (`from_suite_table`) and the Blender add-on's properties read them here, and one function checks each value
+however it arrives (a string on the command line, a TOML value, a panel property), with the same one-line error
+naming the option as the user wrote it (``--spp`` on the command line, ``'spp'`` in a suite file, ``[suite]
+alpha`` in its table).
 
 The places an option is taken: a command's name as ``python -m batch`` spells it (``render``, ``check``, ``suite
 run``...), ``case`` (a suite file's case, under the option's `Option.key`) and ``addon`` (the Blender add-on's
@@ -758,29 +759,50 @@ def _case_options() -> tuple[Option, ...]:
 CASE_OPTIONS = _case_options()
 
 
+def from_file(option: Option, name: str, value):
+    """A value of `option` as a suite file (TOML) gives it, checked as the declaration says, or BatchError naming
+    `name` (``'spp'`` in a case, ``[suite] alpha`` in the suite's table): a number written as text is refused (on
+    the command line every value is text; in a file ``"4"`` is a mistake), a repeatable option is a list."""
+    if option.number and (isinstance(value, str) or isinstance(value, list) and any(
+            isinstance(v, str) for v in value)):  # fmt: skip
+        raise BatchError(f"{name} must be a number, not text: {_show(value)}")
+    if not option.many:
+        return option.convert(name, value)
+    if not isinstance(value, list):
+        raise BatchError(f"{name} must be a list, got {_show(value)}")
+    if option.dest == "devices" and not value:  # a case rendered nowhere would test nothing
+        raise BatchError(f"{name} must name at least one of {', '.join(DEVICES)}, got []")
+    values = tuple(option.convert(name, v) for v in value)
+    if len(set(values)) != len(values):
+        raise BatchError(f"{name} repeats an item: {_show(value)}")
+    return values
+
+
 def from_mapping(entry: dict, label: str, problems: list[str]) -> dict[str, Any]:
-    """The options a suite case gives (by their keys), checked: a bad value is added to `problems` (naming
-    `label` and the key) and left out."""
+    """The options a suite case gives (by their keys), checked (`from_file`): a bad value is added to `problems`
+    (naming `label` and the key) and left out."""
     values = {}
     for option in CASE_OPTIONS:
-        if option.key not in entry:
-            continue
-        value = entry[option.key]
-        try:
-            if option.number and (isinstance(value, str) or isinstance(value, list) and any(
-                    isinstance(v, str) for v in value)):  # fmt: skip
-                raise BatchError(f"'{option.key}' must be a number, not text: {_show(value)}")
-            if option.many:
-                if not isinstance(value, list):
-                    raise BatchError(f"'{option.key}' must be a list, got {_show(value)}")
-                if option.dest == "devices" and not value:  # a case rendered nowhere would test nothing
-                    raise BatchError(f"'{option.key}' must name at least one of {', '.join(DEVICES)}, got []")
-                values[option.dest] = tuple(option.convert(f"'{option.key}'", v) for v in value)
-                if len(set(values[option.dest])) != len(values[option.dest]):
-                    raise BatchError(f"'{option.key}' repeats an item: {_show(value)}")
-            else:
-                values[option.dest] = option.convert(f"'{option.key}'", value)
-        except BatchError as exc:
-            values.pop(option.dest, None)
-            problems.append(f"{label}: {exc}")
+        if option.key in entry:
+            try:
+                values[option.dest] = from_file(option, f"'{option.key}'", entry[option.key])
+            except BatchError as exc:
+                problems.append(f"{label}: {exc}")
+    return values
+
+
+#: The options a suite file's ``[suite]`` table takes (by their keys): those declared for the place ``suite``.
+SUITE_OPTIONS = tuple(o for o in OPTIONS.values() if o.key is not None and "suite" in o.uses)
+
+
+def from_suite_table(table: dict, problems: list[str]) -> dict[str, Any]:
+    """The options a suite file's ``[suite]`` table gives (`SUITE_OPTIONS`, by their keys), checked as a case's
+    are (`from_file`), each error naming ``[suite] <key>``: a bad value is added to `problems` and left out."""
+    values = {}
+    for option in SUITE_OPTIONS:
+        if option.key in table:
+            try:
+                values[option.dest] = from_file(option, f"[suite] {option.key}", table[option.key])
+            except BatchError as exc:
+                problems.append(str(exc))
     return values

@@ -23,7 +23,7 @@ from .._siblings import welch_core as wc
 from ..errors import BatchError, Exit, RendererFailed
 from . import protocol
 from .job import RenderJob
-from .launch import JobProcess, blender_version, bpy_version, job_command, pass_limit
+from .launch import START_NOTICE, JobProcess, blender_version, bpy_version, job_command, pass_limit
 from .protocol import ChunkRequest
 from .samples import SceneSamples
 
@@ -36,9 +36,6 @@ START_TIMEOUT = float(os.environ.get("WELCH_START_TIMEOUT", "900"))
 
 #: Seconds a render process taken for hung has to save what it has before it is killed.
 HUNG_WAIT = 5.0
-
-#: Seconds of silence at start-up after which the user is told what the run waits for.
-START_NOTICE = 15.0
 
 
 class Side:
@@ -75,9 +72,9 @@ class Side:
         """Count the passes already in the statistics file (a resumed run) and start the serving process (a
         `--blender` is checked to be Blender first)."""
         if self.job.blender:
-            blender_version(self.job.blender)
+            blender_version(self.job.blender, self._warn)
         if self.job.python:
-            bpy_version(self.job.python)
+            bpy_version(self.job.python, self._warn)
         if Path(self.job.out).exists():
             self.passes = wc.load_stats(self.job.out, pixels=False).n
         command = job_command(self.job, base_env=self.env, serve=True)
@@ -123,9 +120,9 @@ class Side:
         """Start a process of the side's build that opens its scene and reads what it asks of the passes, without
         rendering (``render --probe``); `probed` waits for the answer."""
         if self.job.blender:
-            blender_version(self.job.blender)
+            blender_version(self.job.blender, self._warn)
         if self.job.python:
-            bpy_version(self.job.python)
+            bpy_version(self.job.python, self._warn)
         self.process = JobProcess(job_command(self.job, base_env=self.env, probe=True))
 
     def probed(self) -> SceneSamples:

@@ -225,3 +225,53 @@ def test_a_reference_of_another_case_is_named_and_not_used(tmp_path):
     (refs / "a.npz").write_bytes((refs / "a.npz").read_bytes()[:100])  # truncated: that case alone fails, named
     outcomes = suites.run_suite(suite, list(suite.cases), refs, tmp_path / "out2", lambda n: None, say=lambda _: 0)
     assert outcomes[0].status == "error" and str(refs / "a.npz") in outcomes[0].message
+
+
+def test_pixel_moments_that_contradict_their_tile_sums_are_refused_by_compare(tmp_path, capsys):
+    """8 v 8 unbiased passes whose files' pixel M2s are all zeros: `compare --pixel-variance on` said `biased`
+    ('a difference spread over many tiles'), exit 1; now the file is refused in one line naming it and the array."""
+    rng = np.random.default_rng(41)
+    paths = []
+    for side, first in (("ref", 0), ("test", 100)):
+        run = wc.TileStats(32, 32, 16, 3, keep_pixel_moments=True)
+        for seed in range(first, first + 8):
+            run.add_pass(rng.gamma(2.0, 0.5, (32, 32, 3)).astype(np.float32), seed)
+        run.pixels.m2[:] = 0.0
+        paths.append(str(tmp_path / f"{side}.npz"))
+        wc.save_stats(paths[-1], run)
+    code = cli.main(["compare", *paths, "--pixel-variance", "on", "--out", str(tmp_path / "r")])
+    assert code == Exit.USAGE
+    assert capsys.readouterr().err == (
+        f"error: {paths[0]!r} is damaged: 'pixel_m2' contradicts its tile sums: in 12 of 12 tile-channels the tile "
+        "sums vary more than their pixels can\n"
+    )
+
+
+def test_a_blender_that_never_answers_is_said_to_be_waited_for_and_stopped_whole(tmp_path, monkeypatch):
+    """A --blender that only sleeps kept `check --scene corner --unpaired --blender ./hang.sh` silent for 45 s:
+    the 15 s line ("waiting for ...") covered a render process slow to start, not the binary's --version that
+    comes first. The same line now comes from there (seconds shortened here), then the one-line error, and
+    nothing the script started is left running."""
+    from batch.jobs import launch
+    from batch.jobs.job import RenderJob
+    from batch.jobs.side import Side
+
+    marker = tmp_path / "child.pid"
+    hang = tmp_path / "hang.sh"
+    hang.write_text(f"#!/bin/sh\nsleep 600 & echo $! > {marker}\nwait\n")
+    hang.chmod(0o755)
+    monkeypatch.setattr(launch, "START_NOTICE", 1.0)
+    monkeypatch.setattr(launch, "VERSION_TIMEOUT", 3.0)
+    said = []
+    side = Side("reference", RenderJob(str(tmp_path / "r.npz"), (0,), scene="corner", blender=str(hang)),
+                warn=said.append)  # fmt: skip
+    start = time.monotonic()
+    with pytest.raises(BatchError) as info:
+        side.start()
+    assert 3.0 <= time.monotonic() - start < 10
+    assert said == [f"reference: waiting for {hang} to answer --version (1 s so far; stopped at 3 s; Ctrl-C stops "
+                    "it now)"]  # fmt: skip
+    assert str(info.value) == f"--blender {hang} did not answer --version within 3 s"
+    stat = Path(f"/proc/{int(marker.read_text())}/stat")
+    time.sleep(0.5)  # the kill is sent; let it land
+    assert not stat.exists() or stat.read_text().rsplit(")", 1)[1].split()[0] == "Z"  # gone, or dead unreaped

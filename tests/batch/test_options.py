@@ -12,6 +12,7 @@ import pytest
 from batch.cli.commands import build_parser
 from batch.decide import suite as suites
 from batch.errors import BatchError
+from batch.jobs import options
 from batch.jobs.options import CASE_OPTIONS, OPTIONS, TEST_SIDE, default
 
 #: Each command's shortest command line: what every other option is defaulted in.
@@ -160,6 +161,24 @@ def test_the_suite_table_takes_the_declared_limits(tmp_path):
         write_suite(tmp_path, header="[suite]\nalpha = 1.0\n")
     with pytest.raises(BatchError, match=r"\[suite\] tolerance must be a percentage"):
         write_suite(tmp_path, header=f'[suite]\ntolerance = "{OPTIONS["tolerance"].high * 100:g}%"\n')
+
+
+def test_the_suite_table_goes_through_the_declaration_as_a_case_does(tmp_path):
+    """`[suite] alpha = "0.01"` (text) was accepted while a case's `spp = "1"` was refused: the table's values
+    skipped the declaration's check. Every option declared for the place ``suite`` is a key of the table, checked
+    by the case's function with the case's messages, each problem said once."""
+    assert [o.key for o in options.SUITE_OPTIONS] == ["tolerance", "alpha"]
+    for option in options.SUITE_OPTIONS:
+        assert option.dest in OPTIONS and "suite" in option.uses
+    message = r"a problem, nothing rendered: \[suite\] alpha must be a number, not text: '0.01'$"
+    with pytest.raises(BatchError, match=message):
+        write_suite(tmp_path, header='[suite]\nalpha = "0.01"\n')
+    with pytest.raises(BatchError, match=r"^'alpha' must be a number, not text: '0.01'$"):
+        options.from_file(OPTIONS["alpha"], "'alpha'", "0.01")  # a case's spelling of the same check
+    both = r"2 problems, nothing rendered: \[suite\] tolerance must be a percentage such as 0.5%, got 0.02; \[suite\] "
+    with pytest.raises(BatchError, match=both):
+        write_suite(tmp_path, header='[suite]\nalpha = "0.01"\ntolerance = 0.02\n')
+    assert write_suite(tmp_path, header='[suite]\nalpha = 0.05\ntolerance = "2%"\n').alpha == 0.05
 
 
 def test_the_pixel_variance_modes_are_the_statistics_ones():

@@ -151,6 +151,34 @@ def test_an_override_of_a_setting_the_job_fixes_is_refused(factory):
     render.check_fixed_settings(scene, 1, None, apply_overrides(scene, ["render.resolution_x=32"]))
 
 
+def test_a_sample_subset_past_the_passes_samples_is_refused_before_rendering(factory, tmp_path):
+    """use_sample_subset with a sample_offset at or past the pass's samples renders black passes (Cycles renders no
+    sample; `compare` then said `inconclusive`, constant images, without a word): refused in one line when the
+    scene is prepared, whether an override or the .blend sets it."""
+    from batch.blender.run import prepare_scene
+    from batch.jobs.job import RenderJob
+
+    out = str(tmp_path / "run.npz")
+    job = RenderJob(out, (0,), spp=2, scene="corner", resolution=(32, 32), tile=16)
+    subset = ("cycles.use_sample_subset=True", "cycles.sample_offset=4")
+    with pytest.raises(render.RenderSetupError) as info:
+        prepare_scene(job.replace(overrides=subset))
+    assert str(info.value) == (
+        "cycles.use_sample_subset is on with cycles.sample_offset 4, at or past the 2 samples of a pass: every "
+        "pass would render black (turn it off: --set cycles.use_sample_subset=False)"
+    )
+    scene, _ = prepare_scene(job.replace(overrides=("cycles.use_sample_subset=True", "cycles.sample_offset=1")))
+    with render.PassRenderer(scene) as renderer:
+        assert renderer.render(0).mean() > 0.02  # within the samples: rendered (lint says what a subset does)
+    scene = render.open_scene(None, "corner")
+    scene.cycles.use_sample_subset, scene.cycles.sample_offset = True, 2
+    blend = str(tmp_path / "subset.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=blend)
+    with pytest.raises(render.RenderSetupError, match=r"^cycles.use_sample_subset is on with cycles.sample_offset 2,"):
+        prepare_scene(RenderJob(out, (0,), spp=2, blend=blend, resolution=(32, 32), tile=16))
+    prepare_scene(RenderJob(out, (0,), spp=3, blend=blend, resolution=(32, 32), tile=16))
+
+
 # -- passes ---------------------------------------------------------------------------------------------------
 
 

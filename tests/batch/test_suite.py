@@ -42,6 +42,7 @@ COMMAND = '[[case]]\nname = "a"\ncommand = "r'
     [
         ("", "no [[case]] in the suite"),
         ("[suite]\nalpha = 2.0\n" + CASE, "[suite] alpha must be a number in (0, 1), got 2.0"),
+        ('[suite]\nalpha = "0.01"\n' + CASE, "[suite] alpha must be a number, not text: '0.01'"),
         ("[sweet]\n" + CASE, "unknown table [sweet] (a suite has [suite], [defaults] and [[case]])"),
         (CASE + "colour = 1\n", "case 'a': unknown key 'colour'"),
         ('[[case]]\nname = "a b"\nscene = "corner"\n', "case 'a b': 'name' must be letters, digits, '-', '_' or '.'"),

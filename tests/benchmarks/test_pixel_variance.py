@@ -162,3 +162,33 @@ def test_the_pixel_test_is_calibrated_on_a_rendered_caustic():
     runs = [checks.one_run(pool, pool, p[:100], p[100:], plan) for p in (rng.permutation(pool.n) for _ in range(150))]
     assert all(run["pixels"] for run in runs)
     assert sum(run["verdict"] == "biased" for run in runs) <= bound
+
+
+def test_the_tripwire_study_reads_the_cached_pools_and_writes_its_table(tmp_path):
+    """`benchmarks.studies.local_tripwire --quick` on a cache of one synthetic pool of the diffuse corner's
+    configuration (independent pixels, its record Cycles' with Tabulated Sobol): A/A rows never refused, planted
+    rows refused once the planted ratio is large."""
+    import json
+    from dataclasses import asdict
+
+    from benchmarks.common.pools import PoolSpec
+    from benchmarks.studies import local_tripwire
+
+    spec = PoolSpec("corner", (), 64, passes=40)
+    folder = tmp_path / "cache" / f"pool-{spec.key}"
+    folder.mkdir(parents=True)
+    rng = np.random.default_rng(3)
+    np.save(folder / "images.npy", _images(rng, 40, size=64).astype(np.float32))
+    info = wc.RunInfo(renderer="Cycles", renderer_version="5.0.1", sampling_pattern="TABULATED_SOBOL",
+                      scene="corner", scene_id="builtin:corner:1", settings={
+                          "cycles.scrambling_distance": 1.0, "cycles.auto_scrambling_distance": False,
+                          "cycles.use_denoising": False, "cycles.use_adaptive_sampling": False})  # fmt: skip
+    meta = {"spec": asdict(spec), "info": info.to_json(), "render_seconds": [0.0] * 40, "io_seconds": [0.0] * 40}
+    (folder / "meta.json").write_text(json.dumps(meta))
+    assert local_tripwire.main(["--quick", "--cache", str(tmp_path / "cache"), "--out", str(tmp_path)]) == 0
+    rows = list(csv.DictReader((tmp_path / "local_tripwire.csv").open()))
+    aa = [r for r in rows if r["kind"] == "aa"]
+    assert [int(r["passes"]) for r in aa] == [n for n in local_tripwire.COUNTS if 2 * n <= 40]
+    assert all(r["record"] == "independent pixels" and r["refused"] == "0" for r in aa)
+    planted = {(float(r["ratio"]), int(r["passes"])): int(r["refused"]) for r in rows if r["kind"] == "planted"}
+    assert planted[64.0, 16] == 3 and planted[2.0, 16] == 0

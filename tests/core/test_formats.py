@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
-from welch_core import RunInfo, StatsFileError, TileStats, WelchInputError, load_stats, save_stats
+from welch_core import PixelMoments, RunInfo, StatsFileError, TileStats, WelchInputError, load_stats, save_stats
 from welch_core.formats import FORMAT_NAME, FORMAT_VERSION
 
 
@@ -443,6 +443,66 @@ def test_version1_files_are_read_and_checked(tmp_path):
     expect_damaged(path, arrays | {"mean": mean}, contradiction)
     expect_damaged(path, arrays | {"mean": np.full_like(mean, np.nan)}, contradiction)
     expect_damaged(path, arrays | {"m2": -arrays["m2"]}, contradiction)
+
+
+def moments_run(seed=0, n=8, offset=0.0):
+    """A run that keeps its pixel moments, of float32 passes (the tile sums add float32 rows)."""
+    rng = np.random.default_rng(seed)
+    run = TileStats(24, 40, 8, keep_pixel_moments=True)
+    for i in range(n):
+        run.add_pass((offset + rng.gamma(2.0, 0.5, (24, 40, 3))).astype(np.float32), 2000 + 100 * seed + i)
+    return run
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "message"),
+    [
+        ("pixel_mean", np.nan, "'pixel_mean' must be finite, got nan (pixel x 7, y 5, channel 1)"),
+        ("pixel_mean", -np.inf, "'pixel_mean' must be finite, got -inf (pixel x 7, y 5, channel 1)"),
+        ("pixel_m2", np.inf, "'pixel_m2' must be finite and >= 0, got inf (pixel x 7, y 5, channel 1)"),
+        ("pixel_m2", -1.0, "'pixel_m2' must be finite and >= 0, got -1.0 (pixel x 7, y 5, channel 1)"),
+    ],
+)
+def test_load_refuses_pixel_moments_that_are_not_finite_naming_the_array(tmp_path, key, value, message):
+    """A NaN or inf pixel mean was refused only when the moments were merged, as 'pixel M2', without the file."""
+    arrays = good_arrays(moments_run(), tmp_path)
+    damaged = arrays[key].copy()
+    damaged[5, 7, 1] = value
+    expect_damaged(tmp_path / "moments.npz", arrays | {key: damaged}, message)
+    with pytest.raises(WelchInputError, match=re.escape(message.replace(f"'{key}'", f"`{key[6:]}`"))):
+        PixelMoments.of(*(damaged if k == key else arrays[k] for k in ("pixel_mean", "pixel_m2")), 8)
+    damaged[0, 0, 0] = value  # more than one: the first, and how many more
+    first = message.split(" (")[0] + " (pixel x 0, y 0, channel 0, and 1 more)"
+    expect_damaged(tmp_path / "moments.npz", arrays | {key: damaged}, first)
+
+
+def test_load_refuses_pixel_moments_that_contradict_the_tile_sums(tmp_path):
+    """All-zero pixel M2s beside tile sums that vary made `compare --pixel-variance on` call 8 v 8 unbiased passes
+    `biased`: moments must be those of the file's passes, (5) and (6) of `welch_core.pixels.moment_conflict`."""
+    run = moments_run()
+    arrays = good_arrays(run, tmp_path)
+    path = tmp_path / "moments.npz"
+    spread = "'pixel_m2' contradicts its tile sums: in {} of 45 tile-channels the tile sums vary more than their pixels"
+    expect_damaged(path, arrays | {"pixel_m2": np.zeros_like(arrays["pixel_m2"])}, spread.format(45))
+    expect_damaged(path, arrays | {"pixel_m2": arrays["pixel_m2"] * 1e-3}, spread.format(45))
+    one = arrays["pixel_m2"].copy()
+    one[8:16, 16:24, 2] = 0  # one tile-channel's pixels never vary
+    expect_damaged(path, arrays | {"pixel_m2": one}, spread.format(1))
+    means = "'pixel_mean' contradicts its tile sums: in {} of 45 tile-channels the pixels' means do not add up to the"
+    expect_damaged(path, arrays | {"pixel_mean": moments_run(seed=1).pixels.mean}, means.format(45))
+    shifted = arrays["pixel_mean"].copy()
+    shifted[0, 0, 0] += 0.05  # of a tile sum of about 64, whose passes spread by about 6
+    expect_damaged(path, arrays | {"pixel_mean": shifted}, means.format(1))
+    sums = arrays["sums"].copy()
+    sums[3, 1, 1, 0] = np.nan  # recorded as a non-finite pass, which keeps no moments
+    meta = json.loads(str(arrays["meta"])) | {"nonfinite_seeds": [run.seeds[3]]}
+    damaged = arrays | {"sums": sums, "meta": np.array(json.dumps(meta))}
+    expect_damaged(path, damaged, means.format(1))
+    # moments of the same passes agree within rounding: a bright offset, passes added one by one and merged
+    bright = moments_run(seed=2, n=5, offset=1e4).merge(moments_run(seed=3, n=3, offset=1e4))
+    for good in (run, bright, moments_run(seed=4, n=2).merge(moments_run(seed=5, n=9))):
+        save_stats(tmp_path / "good.npz", good)
+        assert_allclose(load_stats(tmp_path / "good.npz").pixels.m2, good.pixels.m2, rtol=0)
 
 
 def test_load_missing_path(tmp_path):
