@@ -149,7 +149,7 @@ def _add_check(sub) -> None:
         "stop gives up at most 5%% of the power against such a bias)",
     )
     add_options(k, "check", ("alpha",))
-    add_options(k, "check", ("max_passes", "max_seconds"))
+    add_options(k, "check", ("max_passes", "max_seconds", "min_passes"))
     add_options(k, "check", ("spp", "tile", "resolution", "device", "sampling_pattern", "lobes"))
     add_options(k, "check", TEST_SIDE, side="test")
     k.add_argument("--unpaired", action="store_true", help="disjoint seeds even on one build (an A/A check)")
@@ -355,7 +355,11 @@ def _add_audit(sub) -> None:
                    "audited release is the last")  # fmt: skip
     a.add_argument("--bisect-passes", type=jobs.positive_int, default=32, metavar="N",
                    help="passes per release and side of a bisect (default 32)")  # fmt: skip
-    add_options(a, "audit", ("resolution", "tile", "max_passes", "max_seconds", "alpha", "tolerance", "seed_offset"))
+    add_options(
+        a,
+        "audit",
+        ("resolution", "tile", "max_passes", "max_seconds", "min_passes", "alpha", "tolerance", "seed_offset"),
+    )
     add_cluster_arguments(a)
     a.add_argument("--plan", action="store_true", help="say what the release supports, the cells, the level and "
                    "the time expected, and render nothing")  # fmt: skip
@@ -804,7 +808,8 @@ def cmd_audit(args) -> int:
         build = Build("current")
     releases = tuple(build_of(spec) for spec in args.releases or ())
     spec = audit.AuditSpec(name="cycles", scenes=scenes, changes=(audit.AA, *changes), build=build,
-                           max_passes=args.max_passes, max_seconds=args.max_seconds, alpha=args.alpha,
+                           max_passes=args.max_passes, max_seconds=args.max_seconds, min_passes=args.min_passes,
+                           alpha=args.alpha,
                            tolerance=args.tolerance, resolution=tuple(args.resolution) if args.resolution else None,
                            tile=args.tile, seed_offset=args.seed_offset, releases=releases,
                            bisect_passes=args.bisect_passes)  # fmt: skip
