@@ -334,9 +334,9 @@ def _add_audit(sub) -> None:
         "0), and with --releases the first release that shows it. Says up front how long it expects to take, "
         "prints a line per cell, writes summary.json, junit.xml and index.html (the audit page); --resume reuses "
         "every cell already decided.",
-        epilog="Exit codes: 0 no noise-only setting is confirmed biased, 1 one is (the default against itself "
-        "included), 2 a usage error or a cell that could not run, 3 a control was found in no scene (the audit "
-        "could not have found a bias).",
+        epilog="Exit codes: 0 no noise-only setting is confirmed biased beyond float rounding, 1 one is (the default "
+        "against itself included), 2 a usage error or a cell that could not run, 3 a control was found in no scene "
+        "(the audit could not have found a bias).",
     )
     a.add_argument("blends", nargs="*", metavar="SCENE.blend", help="scene files to audit")
     a.add_argument("--scene", dest="scenes", action="append", default=[], metavar="NAME",
@@ -830,7 +830,14 @@ def _run_audit(spec, out, resume: bool, cluster, plan_only: bool = False) -> int
         say(f"audit: {estimate(plan).text()}")
         return Exit.OK
     _results, summary = run_audit(plan, out, support, resume, cluster, say)
-    counts = ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in summary["counts"].items() if v)
+    from ..present import fmt
+
+    found = sum(len(scenes) for scenes in summary["controls_found"].values())
+    rounding = len(summary["rounding"])
+    counts = dict(summary["counts"], biased=summary["counts"]["biased"] - found - rounding)  # a control found is no
+    counts = ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in counts.items() if v)  # finding
+    counts += f", {rounding} biased at the scale of float rounding" if rounding else ""
+    counts += f", {fmt.count(found, 'control')} found" if found else ""
     say(f"audit: {counts}; findings: {', '.join(summary['findings']) or 'none'}"
         + (f"; controls found nowhere: {', '.join(summary['unfound_controls'])}" if summary["unfound_controls"]
            else ""))  # fmt: skip

@@ -31,6 +31,9 @@ _CONTROL = {
     "undecided": ("#777", "not found"),
 }
 
+#: A confirmed difference no larger than float rounding (`batch.decide.audit_run.ROUNDING`).
+_ROUNDING = ("#7a5c00", "biased, rounding only")
+
 _EXTRA_STYLE = """
 header .muted,main p.muted,main p{max-width:1000px}
 th.change .muted{font-weight:400}
@@ -47,9 +50,11 @@ th.change{max-width:260px}
 def headline(summary: dict) -> str:
     """The audit's outcome in a few words (its exit code's meaning)."""
     findings = len(summary["findings"])
+    rounding = len(summary.get("rounding", ()))
+    scale = f" ({rounding} at the scale of float rounding)" if rounding else ""
     return {
-        Exit.OK: "no noise-only setting is confirmed biased",
-        Exit.BIASED: f"{findings} confirmed difference{'s' if findings != 1 else ''} of noise-only settings",
+        Exit.OK: f"no noise-only setting is confirmed biased beyond float rounding{scale}",
+        Exit.BIASED: f"{findings} confirmed difference{'s' if findings != 1 else ''} of noise-only settings{scale}",
         Exit.USAGE: "a cell could not run",
         Exit.INCONCLUSIVE: "a control was found in no scene: the audit can't vouch for its power",
     }[summary["exit_code"]]
@@ -63,8 +68,10 @@ def write_audit_page(path, plan, summary: dict, results) -> None:
     title = f"Audit of Cycles {version}{named}: {headline(summary)}"
     counts = dict(summary["counts"])
     found = sum(r.found for r in results)  # a control's `biased` is the audit working, not a finding
-    counts["biased"] -= found
+    rounding = sum(r.rounding for r in results)
+    counts["biased"] -= found + rounding
     shown = [(_CELL[k][0], f"{v} {_CELL[k][1]}") for k, v in counts.items() if v]
+    shown += [(_ROUNDING[0], f"{rounding} biased at the scale of float rounding")] if rounding else []
     shown += [(_CONTROL["biased"][0], f"{found} control{'s' if found != 1 else ''} found")] if found else []
     counts = "".join(f'<span style="color:{colour}">{html.escape(text)}</span>' for colour, text in shown)
     seconds = f" · {fmt.duration(summary['seconds'])} in all" if summary.get("seconds") else ""
@@ -81,7 +88,8 @@ def write_audit_page(path, plan, summary: dict, results) -> None:
 render), a column per scene. <b>no difference</b>: `equivalent`, the claim within the tolerance in every tile of
 the size given, at the audit's level, or every pass bit-identical on both sides in at least as many passes as rule
 out a change that alters one pass in ten at that level; <b>biased</b>: biased on its first seeds and again on
-fresh ones with the tile sums alone; <b>not confirmed</b>: biased on the first seeds only; <b>not decided</b>:
+fresh ones with the tile sums alone; <b>biased, rounding only</b>: confirmed, but no larger than float rounding in
+any tile (listed apart, no finding); <b>not confirmed</b>: biased on the first seeds only; <b>not decided</b>:
 neither within the budget (the bias it rules out where it bounds one; <i>identical so far</i> where every pass
 was identical but fewer than that; <i>too few passes</i> where the time budget ended before two a side). A
 control's cell says <b>found</b> where its bias was confirmed, and <b>not exercised</b> where the scene shows no
@@ -95,11 +103,23 @@ effect of it. Click a cell for its report.</p></section>
 
 def _findings(summary: dict, results) -> str:
     findings = [r for r in results if r.finding]
+    rounding = [r for r in results if r.rounding]
+    tail = ""
+    if rounding:
+        items = "".join(
+            f'<li data-key="{html.escape(r.cell.key)}"><b>{html.escape(r.cell.change.name)}</b> on '
+            f"<b>{html.escape(r.cell.scene.label)}</b>: {html.escape(r.message)} · "
+            f'<a href="{html.escape(r.confirm["report"])}">confirmation</a></li>'
+            for r in rounding
+        )
+        tail = (f'<h3>At the scale of float rounding</h3><p class="muted">Confirmed, but no larger than float rounding '
+                f"in any tile: the passes differ in their rounding, not in their light (a control here is one its "
+                f'scene does not exercise).</p><ul id="rounding" class="findings">{items}</ul>')  # fmt: skip
     if not findings:
         return ('<section><h2>Findings</h2><p id="findings" class="findings">No setting documented to change only '
-                "the noise is confirmed biased.</p></section>")  # fmt: skip
+                f"the noise is confirmed biased beyond float rounding.</p>{tail}</section>")  # fmt: skip
     items = "".join(_finding(r) for r in findings)
-    return f'<section><h2>Findings</h2><ol id="findings" class="findings">{items}</ol></section>'
+    return f'<section><h2>Findings</h2><ol id="findings" class="findings">{items}</ol>{tail}</section>'
 
 
 def _finding(result) -> str:
@@ -137,9 +157,10 @@ def _controls(plan, results) -> str:
         mine = [r for r in results if r.cell.change.name == change.name and r.status != "not_applicable"]
         found = [r.cell.scene.label for r in mine if r.found]
         where = f"found in {len(found)} of {len(mine)} scenes" + (f" ({', '.join(found)})" if found else "")
-        for status, word in (("equivalent", "not exercised (no difference)"), ("unconfirmed", "not confirmed"),
-                             ("undecided", "not decided"), ("error", "could not run")):  # fmt: skip
-            scenes = [r.cell.scene.label for r in mine if r.status == status]
+        for status, word in (("equivalent", "not exercised (no difference)"), ("rounding", "not exercised (float "
+                             "rounding only)"), ("unconfirmed", "not confirmed"), ("undecided", "not decided"),
+                             ("error", "could not run")):  # fmt: skip
+            scenes = [r.cell.scene.label for r in mine if r.status == status or status == "rounding" and r.rounding]
             if scenes:
                 where += f"; {word} in {', '.join(scenes)}"
         rows.append(f"<li><b>{html.escape(change.name)}</b>: {html.escape(where)}</li>")
@@ -171,7 +192,7 @@ def _cell(result) -> str:
     if result is None:
         return '<td class="muted">—</td>'
     table = _CONTROL if result.cell.change.control and result.status in _CONTROL else _CELL
-    colour, word = table[result.status]
+    colour, word = _ROUNDING if result.rounding else table[result.status]
     first, confirm = result.first, result.confirm
     shown = confirm if result.status == "biased" else first
     body = [f'<div class="status" style="color:{colour}">{html.escape(word)}</div>']
@@ -186,7 +207,9 @@ def _cell(result) -> str:
     elif shown is not None and shown.get("whole_image") and shown["whole_image"].get("estimate") is not None:
         body.append(f"<div>{html.escape(fmt.difference(shown['whole_image']))}</div>")
     strongest = (shown or {}).get("most_significant")
-    if result.status == "biased" and strongest and strongest.get("tile"):
+    if result.rounding:
+        body.append('<div class="why">no larger than float rounding in any tile</div>')
+    elif result.status == "biased" and strongest and strongest.get("tile"):
         where = f"{strongest['channel']} of a {strongest['tile']}² tile at {strongest['x']}, {strongest['y']}"
         body.append(f'<div class="muted">most significant: {html.escape(fmt.difference(strongest))} in {where}</div>')
     if first is None and result.status in ("undecided", "error"):

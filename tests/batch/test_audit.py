@@ -431,3 +431,34 @@ def test_a_resumed_audit_runs_again_what_the_floor_or_an_error_cut_short(tmp_pat
     reused = again.result(tiling)
     assert reused.reused and reused.status == "undecided"
     assert reused.message.startswith("not decided: every pass identical on both sides so far (95 passes a side; ")
+
+
+def test_a_difference_no_larger_than_float_rounding_is_said_so():
+    """Cycles 4.5.4 renders the built-in scenes with rounding-level differences after a BVH, thread or persistent
+    data change (and between two renders of the same settings); paired passes make them significant. Such a
+    confirmed cell says its size and is no finding, and a control confirmed only so is one its scene does not
+    exercise."""
+    plan = plan_audit(spec(changes=(by_name("compact_bvh"), by_name("clamp_indirect")), scenes=("corner",)), {})
+    _aa, bvh, clamp = plan.cells
+    tiny = {"estimate": 1.1e-8, "low": 2e-10, "high": 2.2e-8}
+    first, confirm = record("biased", whole_image=tiny, largest=tiny), record("biased", most_significant=tiny)
+    assert audit_run.rounding_only(first, confirm) and not audit_run.rounding_only(record("biased", largest={
+        "estimate": 0.004, "low": 0.001, "high": 0.007}))  # fmt: skip
+    said = audit_run.cell_sentence(bvh, "biased", first, confirm)
+    assert said.startswith("biased at the scale of float rounding: whole image —; the largest difference estimated in "
+                           "any tile is 1.1e-08 relative (below 1e-06, the size of float rounding): the passes differ "
+                           "in their rounding, not in their light (confirmed on fresh seeds: 12 passes")  # fmt: skip
+    cells = [CellResult(c, "biased", "x", first=first, confirm=confirm) for c in (bvh, clamp)]
+    assert cells[0].rounding and not cells[0].finding and not cells[1].found
+    assert audit_run.unfound_controls(plan, cells) == ["clamp_indirect"]
+    summary = audit_run.summary_of(plan, [CellResult(plan.cells[0], "equivalent", "x"), *cells])
+    assert summary["rounding"] == ["compact_bvh/corner", "clamp_indirect/corner"] and summary["findings"] == []
+    assert summary["exit_code"] == Exit.INCONCLUSIVE  # not 1; 3: the control was found nowhere beyond rounding
+    from batch.present.audit_page import headline
+
+    assert headline(summary) == "a control was found in no scene: the audit can't vouch for its power"
+    summary["exit_code"] = Exit.OK
+    assert (
+        headline(summary) == "no noise-only setting is confirmed biased beyond float rounding (2 at the scale of "
+        "float rounding)"
+    )
