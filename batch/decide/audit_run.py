@@ -465,7 +465,7 @@ class Audit:
     def _reused(self, cell: Cell) -> CellResult:
         """A recorded cell, said as this version says it (its status, sentence, command and bisect)."""
         result = CellResult.from_json(cell, self.records[cell.key])
-        if result.finding:
+        if result.status == "biased" and not cell.change.control:  # a finding, or one at the scale of rounding
             result.command = check_command(self.plan, cell, "confirm", self.folder(cell) / "again")
         if result.bisect and result.bisect.get("steps") is not None:
             result.bisect["message"] = bisect_sentence(result.bisect, self._bisect_builds(), self.plan.spec)
@@ -484,7 +484,7 @@ class Audit:
             return CellResult(cell, "error", f"error: {' '.join(str(exc).split())}")
         status = status_of(first, confirm)
         result = CellResult(cell, status, cell_sentence(cell, status, first, confirm), first=first, confirm=confirm)
-        if result.finding:
+        if result.status == "biased" and not cell.change.control:  # a finding, or one at the scale of rounding
             result.command = check_command(self.plan, cell, "confirm", self.folder(cell) / "again")
         if result.finding and not cell.change.aa:  # the default against itself: no change to explain
             result.explain = self._explain(cell, where)
