@@ -29,10 +29,12 @@ from batch.jobs import protocol
 ROOT = Path(__file__).resolve().parents[2]
 
 #: One pass: the image PREFIX(SEED % 8).exr; from the pass whose index (SEED % 1000: a check's test side starts at
-#: seed 1000000) is in ./hang-from on, it writes its process id into ./hung-INDEX-PID and hangs.
+#: seed 1000000) is in ./hang-from on, it writes its process id into ./hung-INDEX-PID and hangs; with ./slow, each
+#: pass first sleeps its seconds.
 PASS_SCRIPT = """\
 i=$(( $2 % 1000 ))
 if [ -e hang-from ] && [ "$i" -ge "$(cat hang-from)" ]; then echo $$ > "hung-$i-$$"; exec sleep 1000; fi
+if [ -e slow ]; then sleep "$(cat slow)"; fi
 cp "$1$(( $2 % 8 )).exr" "$3"
 """
 
@@ -129,6 +131,38 @@ def test_a_check_whose_renderer_hangs_in_its_first_pass_ends_at_its_time_budget(
     hang_from(renderer, None)  # a resumed check renders no more: its budget is spent
     again, _ = tool([*CHECK, "--max-seconds", 1, "--out", out, "--resume"], renderer, expect=Exit.INCONCLUSIVE)
     assert again.stdout == done.stdout and not (out / "reference.npz").exists()
+
+
+@pytest.mark.slow
+def test_a_floor_of_passes_renders_them_whatever_their_seconds(renderer):
+    """``--min-passes``: a pass of 1 s on each side, a budget of 1 s. Without a floor the check ends at its first
+    look (2 passes a side); with a floor of 3 both sides render 3 passes and the check ends on them. A renderer that
+    hangs in the floor's passes is still stopped, at 10 times the budget."""
+    hang_from(renderer, None)
+    (renderer / "slow").write_text("1")
+    done, _wall = tool([*CHECK, "--max-seconds", 1, "--min-passes", 3, "--out", renderer / "floor"], renderer,
+                       expect=Exit.INCONCLUSIVE)  # fmt: skip
+    report = json.loads((renderer / "floor" / "report.json").read_text())
+    assert report["n_ref"] == report["n_test"] == 3 and report["check"]["ended_pass"] is None
+    assert report["check"]["min_passes"] == 3 and report["check"]["looks"][-1]["seconds"] > 1 + BUDGET_MARGIN + 2
+    assert done.stdout.startswith("verdict: inconclusive: ")
+
+    (renderer / "slow").unlink()
+    hang_from(renderer, 0)
+    done, wall = tool([*CHECK, "--max-seconds", 0.5, "--min-passes", 3, "--out", renderer / "hung"], renderer,
+                      expect=Exit.INCONCLUSIVE)  # fmt: skip
+    assert wall < 10 * 0.5 + BUDGET_MARGIN + ALLOWANCE, wall
+    assert done.stdout.strip().endswith("too few passes to look at (0 of the reference side, 0 of the test side; a "
+                                        "look needs 2 a side)")  # fmt: skip
+    assert not running(renderer)
+
+
+def test_a_floor_of_passes_needs_a_time_budget(renderer, capsys):
+    assert cli.main([*CHECK, "--min-passes", "3", "--out", str(renderer / "c")]) == Exit.USAGE
+    assert "--min-passes is the floor of a time budget: give --max-seconds too" in capsys.readouterr().err
+    args = [*CHECK, "--min-passes", "30", "--max-passes", "20", "--max-seconds", "1", "--out", str(renderer / "c")]
+    assert cli.main(args) == Exit.USAGE
+    assert "--min-passes 30 is more than --max-passes 20" in capsys.readouterr().err
 
 
 @pytest.mark.slow
