@@ -803,14 +803,7 @@ def from_file(option: Option, name: str, value):
 def from_mapping(entry: dict, label: str, problems: list[str]) -> dict[str, Any]:
     """The options a suite case gives (by their keys), checked (`from_file`): a bad value is added to `problems`
     (naming `label` and the key) and left out."""
-    values = {}
-    for option in CASE_OPTIONS:
-        if option.key in entry:
-            try:
-                values[option.dest] = from_file(option, f"'{option.key}'", entry[option.key])
-            except BatchError as exc:
-                problems.append(f"{label}: {exc}")
-    return values
+    return _from_table(CASE_OPTIONS, entry, "'{}'", f"{label}: ", problems)
 
 
 #: The options a suite file's ``[suite]`` table takes (by their keys): those declared for the place ``suite``.
@@ -820,11 +813,17 @@ SUITE_OPTIONS = tuple(o for o in OPTIONS.values() if o.key is not None and "suit
 def from_suite_table(table: dict, problems: list[str]) -> dict[str, Any]:
     """The options a suite file's ``[suite]`` table gives (`SUITE_OPTIONS`, by their keys), checked as a case's
     are (`from_file`), each error naming ``[suite] <key>``: a bad value is added to `problems` and left out."""
+    return _from_table(SUITE_OPTIONS, table, "[suite] {}", "", problems)
+
+
+def _from_table(options, table: dict, naming: str, prefix: str, problems: list[str]) -> dict[str, Any]:
+    """The values `table` gives for `options` (by their keys), each named in an error as `naming` formats the key;
+    a bad one is added to `problems` after `prefix` and left out."""
     values = {}
-    for option in SUITE_OPTIONS:
+    for option in options:
         if option.key in table:
             try:
-                values[option.dest] = from_file(option, f"[suite] {option.key}", table[option.key])
+                values[option.dest] = from_file(option, naming.format(option.key), table[option.key])
             except BatchError as exc:
-                problems.append(str(exc))
+                problems.append(f"{prefix}{exc}")
     return values

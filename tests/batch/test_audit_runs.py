@@ -15,33 +15,13 @@ from pathlib import Path
 
 import pytest
 
+from tests.helpers.audits import PLANTED, TIGHT
+
 ROOT = Path(__file__).resolve().parents[2]
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 SCREENSHOT = ROOT / "docs" / "screenshots" / "audit.png"
 pytestmark = pytest.mark.slow
 
-#: A tight indirect clamp: biased by design (a control), found in the corner scene within 2 passes.
-TIGHT = """
-[[change]]
-name = "tight_clamp"
-setting = "cycles.sample_clamp_indirect"
-reference = ["cycles.sample_clamp_indirect=0"]
-test = ["cycles.sample_clamp_indirect=0.05"]
-documented = "bias"
-samples = 1
-why = "a tight indirect clamp, a control"
-"""
-#: A tight direct clamp wrongly documented as noise-only: a finding the audit must report.
-PLANTED = """
-[[change]]
-name = "planted"
-setting = "cycles.sample_clamp_direct"
-reference = ["cycles.sample_clamp_direct=0"]
-test = ["cycles.sample_clamp_direct=0.05"]
-documented = "noise"
-samples = 1
-why = "a direct clamp said to change only the noise"
-"""
 SMALL = ["--resolution", "32", "32", "--tile", "8", "--max-passes", "24"]
 
 

@@ -12,6 +12,7 @@ import xml.etree.ElementTree as ET
 
 import pytest
 
+from tests.helpers.audits import PLANTED, TIGHT
 from tests.helpers.pytest_runs import pytest_in, skip_unless_plugin_installed
 
 pytestmark = pytest.mark.slow
@@ -92,7 +93,8 @@ def test_a_bad_suite_file_is_one_collection_error(project):
     assert "Traceback" not in done.stdout
 
 
-AUDIT = """
+AUDIT = (
+    """
 [audit]
 name = "smoke"
 scenes = ["corner"]
@@ -100,25 +102,10 @@ changes = "none"
 resolution = [32, 32]
 tile = 8
 passes = 24
-
-[[change]]
-name = "tight_clamp"
-setting = "cycles.sample_clamp_indirect"
-reference = ["cycles.sample_clamp_indirect=0"]
-test = ["cycles.sample_clamp_indirect=0.05"]
-documented = "bias"
-samples = 1
-why = "a tight indirect clamp: a control the audit must find"
-
-[[change]]
-name = "planted"
-setting = "cycles.sample_clamp_direct"
-reference = ["cycles.sample_clamp_direct=0"]
-test = ["cycles.sample_clamp_direct=0.05"]
-documented = "noise"
-samples = 1
-why = "a direct clamp said to change only the noise: it must fail"
 """
+    + TIGHT
+    + PLANTED
+)
 
 
 def test_an_audit_file_is_a_test_per_cell_and_per_control(tmp_path):
