@@ -105,7 +105,7 @@ def summarize(
         "check": check,
     }
     summary["warnings"] = warnings(summary)
-    summary["next_step"] = words.next_step(data, check=check is not None, hidden=hidden)
+    summary["next_step"] = words.next_step(data, check=check, hidden=hidden)
     return summary
 
 

@@ -335,11 +335,13 @@ def sample_hidden(name: str, values: tuple[str, str], fewest: int, spp: int) -> 
     return f"{name}: {values[0]} → {values[1]}{_ACTING}{fewest} samples per render, {spp} in the passes"
 
 
-def next_step(outcome: dict[str, Any], check: bool = False, hidden: list[str] = ()) -> str:
-    """What to do with this verdict, in a sentence or two; `hidden`: the settings in which the two sides differ
-    but the passes do not: a setting the passes replace on both sides (`batch.present.summary.fixed_notes`), or one
-    that acts only from more samples per render than the passes have (`sample_hidden`)."""
+def next_step(outcome: dict[str, Any], check: dict[str, Any] | None = None, hidden: list[str] = ()) -> str:
+    """What to do with this verdict, in a sentence or two; `check`: a check's record (`check_record`), None for a
+    compare; `hidden`: the settings in which the two sides differ but the passes do not: a setting the passes
+    replace on both sides (`batch.present.summary.fixed_notes`), or one that acts only from more samples per render
+    than the passes have (`sample_hidden`)."""
     reason = outcome["reason"]
+    timed = bool(check and check.get("max_seconds"))  # its budget can't grow on resume: a new check is the way on
     if hidden and reason in ("bounded", "identical", "identical_too_few"):
         names = ", ".join(dict.fromkeys(h.split(":")[0] for h in hidden))
         if any(_ACTING in h for h in hidden):
@@ -354,7 +356,10 @@ def next_step(outcome: dict[str, Any], check: bool = False, hidden: list[str] = 
             "--test-device); a denoiser, adaptive sampling or a time limit is outside what this test can judge."
         )
     more = (
-        "run the same check again with a larger --max-passes and --resume: the looks already made keep their "
+        "run the check again with a larger --max-seconds (or --max-passes alone) and another --out: a time budget "
+        "does not grow on resume"
+        if timed
+        else "run the same check again with a larger --max-passes and --resume: the looks already made keep their "
         "boundaries, and the looks past the budget spend the share of alpha kept for them"
         if check
         else "render more passes into both runs (the same render commands with --resume and more seeds), then "
@@ -394,7 +399,8 @@ def next_step(outcome: dict[str, Any], check: bool = False, hidden: list[str] = 
             grow = (
                 f"{every_tile(claim)} within ±{_tolerance(outcome)} would need about {need} passes a side if the sides "
                 "agree: "
-                + (f"the same check with --max-passes {need} and --resume" if check
+                + (f"the check again with --max-passes {need} (no --max-seconds) and another --out" if timed
+                   else f"the same check with --max-passes {need} and --resume" if check
                    else f"render about {need} passes a side into both runs (--resume, more seeds), then compare again")
             )  # fmt: skip
             if claim["passes_needed"] is None and n >= outcome["identical_needed"]:

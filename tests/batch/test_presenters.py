@@ -133,7 +133,9 @@ def test_a_check_says_its_last_looks_verdict_everywhere(tmp_path):
                       "whole_image": look.outcome.whole_image.to_json(), "uncovered": 0, "seconds": 0.0})  # fmt: skip
         if look.verdict is not None:
             break
-    job = SimpleNamespace(max_seconds=None, tolerance=0.01, paired=False, seed_offset=0, auto_samples=None)
+    job = SimpleNamespace(
+        max_seconds=None, min_passes=None, tolerance=0.01, paired=False, seed_offset=0, auto_samples=None
+    )
     comparison = wc.compare(ref.subset(range(n)), test.subset(range(n)), tolerance=0.01)
     report = present(tmp_path, comparison, ref.subset(range(n)), test.subset(range(n)), outcome=look.outcome,
                      check=check_record(job, looks, 16, look))  # fmt: skip

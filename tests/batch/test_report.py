@@ -95,7 +95,7 @@ def test_a_check_report_lists_its_looks(tmp_path):
               "seconds": 0.1}]  # fmt: skip
 
     class Job:
-        max_seconds, tolerance, paired, seed_offset, auto_samples = None, 0.01, False, 0, None
+        max_seconds, min_passes, tolerance, paired, seed_offset, auto_samples = None, None, 0.01, False, 0, None
 
     durations = {"wall": 76.0, "sides": {"reference": 52.0, "test": 52.4}}  # the sides render at once
     check = summary.check_record(Job, looks, 32, look, durations=durations)

@@ -146,6 +146,8 @@ def test_a_floor_of_passes_renders_them_whatever_their_seconds(renderer):
     assert report["n_ref"] == report["n_test"] == 3 and report["check"]["ended_pass"] is None
     assert report["check"]["min_passes"] == 3 and report["check"]["looks"][-1]["seconds"] > 1 + BUDGET_MARGIN + 2
     assert done.stdout.startswith("verdict: inconclusive: ")
+    # a time budget does not grow on resume: the advice is a new check
+    assert "another --out" in report["next_step"] and "--resume" not in report["next_step"], report["next_step"]
 
     (renderer / "slow").unlink()
     hang_from(renderer, 0)
