@@ -715,6 +715,20 @@ def check_job_from_args(args) -> CheckJob:
     return check_job(CheckRequest.from_args(args))
 
 
+def _check_claim_tile(claim: int | None, tile: int, resolution) -> None:
+    """Refuse an --equivalence-tile the check will not test (its tested sizes: the tile times 1, 2, 4, ... up to
+    the first that covers the image, `welch_core.comparison.scale_factors`) before anything renders."""
+    if claim is None:
+        return
+    factor = claim // tile
+    sizes = ", ".join(str(tile << k) for k in range(3))
+    if claim % tile or factor & (factor - 1) or factor < 1:
+        raise BatchError(f"--equivalence-tile {claim} is not a tested tile size: the tile ({tile}) times a power of "
+                         f"two ({sizes}, ...)")  # fmt: skip
+    if resolution and factor > 1 and claim >= 2 * max(resolution):
+        raise BatchError(f"--equivalence-tile {claim} is larger than the image ({resolution[0]}x{resolution[1]})")
+
+
 def check_job(request: CheckRequest, probe=None) -> CheckJob:
     """The check `request` describes, refused in one line where it can't work, before anything renders. `probe`
     reads what scene files ask of the passes for ``--spp auto`` (default `batch.jobs.side.probe_scenes`: a process
@@ -735,6 +749,7 @@ def check_job(request: CheckRequest, probe=None) -> CheckJob:
                          "of --max-passes renders)")  # fmt: skip
     if args.min_passes is not None and args.max_passes is not None and args.min_passes > args.max_passes:
         raise BatchError(f"--min-passes {args.min_passes} is more than --max-passes {args.max_passes}")
+    _check_claim_tile(args.equivalence_tile, args.tile, args.resolution)
     # A time budget renders at most --max-passes where given too (whichever ends first): its pass budget, fixed from
     # the speed of the first chunk, is at most the seeds a side has.
     count = args.max_passes or max_passes or MAX_SEEDS_FOR_SECONDS

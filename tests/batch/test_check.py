@@ -17,6 +17,7 @@ import pytest
 import welch_core as wc
 from batch import cli
 from batch.blender.scenes import WALL_COLOR_PATH
+from batch.errors import Exit
 from batch.jobs import protocol
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -163,6 +164,39 @@ def test_tolerance_off_means_no_equivalent_verdict():
     assert args.tolerance is None and check_job_from_args(args).plan(16).tolerance is None
     with pytest.raises(SystemExit):
         cli.build_parser().parse_args(["check", "--scene", "corner", "--tolerance", "none", "--out", "x"])
+
+
+@pytest.mark.parametrize(
+    ("given", "message"),
+    [
+        (["--equivalence-tile", "8"], "--equivalence-tile 8 is not a tested tile size: the tile (16) times a power of "
+                                      "two (16, 32, 64, ...)"),
+        (["--equivalence-tile", "48"], "--equivalence-tile 48 is not a tested tile size: the tile (16) times a power "
+                                       "of two (16, 32, 64, ...)"),
+        (["--equivalence-tile", "128", "--resolution", "64", "64"], "--equivalence-tile 128 is larger than the image "
+                                                                     "(64x64)"),
+    ],
+)  # fmt: skip
+def test_an_equivalence_tile_the_check_does_not_test_is_refused_before_it_renders(tmp_path, capsys, given, message):
+    out = tmp_path / "c"
+    assert cli.main(["check", "--scene", "corner", "--unpaired", *given, "--out", str(out)]) == Exit.USAGE
+    assert capsys.readouterr().err == f"error: {message}\n" and not out.exists()
+    from batch.decide.check import check_job_from_args
+
+    allowed = [
+        "check",
+        "--scene",
+        "corner",
+        "--unpaired",
+        "--equivalence-tile",
+        "64",
+        "--resolution",
+        "64",
+        "64",
+        "--out",
+        "x",
+    ]
+    assert check_job_from_args(cli.build_parser().parse_args(allowed)).plan(16).equivalence_tile == 64
 
 
 @pytest.mark.slow
