@@ -155,6 +155,11 @@ def read_changes(entries, problems: list[str], taken: tuple[str, ...] = ()) -> t
     return tuple(changes)
 
 
+def _got(entry: dict, key: str) -> str:
+    """How a bad value of `key` is named in a problem: the value, or that it is missing."""
+    return f"got {entry[key]!r}" if key in entry else "and it is missing"
+
+
 def _change(entry: dict, label: str, problems: list[str]) -> Change | None:
     found = len(problems)
     unknown = sorted(set(entry) - set(_KEYS))
@@ -162,13 +167,14 @@ def _change(entry: dict, label: str, problems: list[str]) -> Change | None:
         problems.append(f"{label}: unknown key {unknown[0]!r} (a change has {', '.join(_KEYS)})")
     name = entry.get("name")
     if not isinstance(name, str) or not _NAME.fullmatch(name) or name == AA.name:
-        problems.append(f"{label}: 'name' must be lower-case letters, digits and '_' (not {AA.name!r}), got {name!r}")
+        problems.append(f"{label}: 'name' must be lower-case letters, digits and '_' (not {AA.name!r}), "
+                        f"{_got(entry, 'name')}")  # fmt: skip
     for key, meaning in (("setting", "the setting changed"), ("why", "what Cycles documents it to change")):
         if not isinstance(entry.get(key), str) or not entry[key].strip():
-            problems.append(f"{label}: {key!r} must be text ({meaning}), got {entry.get(key)!r}")
+            problems.append(f"{label}: {key!r} must be text ({meaning}), {_got(entry, key)}")
     documented = entry.get("documented")
     if documented not in DOCUMENTED:
-        problems.append(f"{label}: 'documented' must be 'noise' or 'bias', got {documented!r}")
+        problems.append(f"{label}: 'documented' must be 'noise' or 'bias', {_got(entry, 'documented')}")
     sides = {}
     for key in ("reference", "test"):
         value = entry.get(key, [])
@@ -191,8 +197,11 @@ def _change(entry: dict, label: str, problems: list[str]) -> Change | None:
     samples = entry.get("samples")
     if isinstance(samples, bool) or not isinstance(samples, int) or not 1 <= samples <= options.MAX_SPP:
         problems.append(f"{label}: 'samples' (samples per render, at least what the setting acts at) must be an "
-                        f"integer in 1..{options.MAX_SPP}, got {samples!r}")  # fmt: skip
+                        f"integer in 1..{options.MAX_SPP}, {_got(entry, 'samples')}")  # fmt: skip
         samples = None
+    same = (sides.get("reference", ()), entry.get("pattern")) == (sides.get("test", ()), entry.get("test_pattern"))
+    if "reference" in sides and "test" in sides and same and device is None:
+        problems.append(f"{label}: 'test' is the same as 'reference': the change changes nothing")
     if len(problems) > found:
         return None
     change = Change(name=name, setting=entry["setting"], documented=documented, samples=samples, why=entry["why"],

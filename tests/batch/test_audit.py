@@ -150,10 +150,15 @@ def test_a_missing_key_and_a_bad_number_are_named():
     assert audit.read_changes([{"name": "x", "setting": "cycles.seed", "test": ["cycles.seed=1"],
                                 "documented": "noise", "samples": 0}], problems) == ()  # fmt: skip
     assert problems == [
-        "change 'x': 'why' must be text (what Cycles documents it to change), got None",
+        "change 'x': 'why' must be text (what Cycles documents it to change), and it is missing",
         "change 'x': 'samples' (samples per render, at least what the setting acts at) must be an integer in "
         "1..16777216, got 0",
     ]
+    problems = []
+    assert audit.read_changes([{"name": "x", "setting": "cycles.seed", "reference": ["cycles.seed=1"],
+                                "test": ["cycles.seed=1"], "documented": "bias", "samples": 1, "why": "y"}],
+                              problems) == ()  # fmt: skip
+    assert problems == ["change 'x': 'test' is the same as 'reference': the change changes nothing"]
 
 
 def test_a_later_override_of_a_path_replaces_an_earlier_one():
