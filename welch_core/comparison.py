@@ -26,7 +26,7 @@ from .errors import SeedOverlapError, WelchInputError, check_alpha
 from .multitest import GlobalTest, bonferroni, bonferroni_p, combine_channels, global_test
 from .permutation import needs_resampling, permutation_max_t
 from .pixels import MIN_PIXEL_DF, PixelMoments, PixelUse, pixel_paired, pixel_use, pixel_welch
-from .tiles import TileStats
+from .tiles import TileStats, tile_row_blocks
 from .ttest import Reason, TTestResult, paired_from_stats, welch_from_stats
 from .verdict import Verdict
 
@@ -226,6 +226,11 @@ def scale_factors(run: TileStats, tile: int | None = None) -> list[int]:
     return factors
 
 
+#: A relative difference below this is the size of float rounding (float32: 2^-24, 6e-8, per operation; a path is
+#: some hundreds of them), not a difference of the light. Two processes of one build can render the same passes
+#: with different last bits (Cycles 4.5.4 always; 5.0.1's textured scene in a few tiles, the same in every pass).
+ROUNDING = 1e-6
+
 #: Paired differences exactly zero in at least this share of the passes are "mostly exact zeros": a change that
 #: alters a few light paths, its own case in the diagnostics (not fireflies), whichever test the tile gets.
 SPARSE_SHARE = 0.5
@@ -281,6 +286,7 @@ def test_tiles(
             result = TTestResult(**{f: np.where(unpaired, getattr(welch, f), getattr(result, f)) for f in fields})
             cross = np.where(unpaired, -ref_var, cross)
             suspect, excess = suspect & ~unpaired, np.where(unpaired, own_excess, excess)
+        result = _rounding_is_no_difference(result, ref.mean)
         checked = diffs.n >= MIN_PASSES_FOR_NORMALITY
         sparse = (diffs.sums == 0).mean(axis=0) >= SPARSE_SHARE if diffs.n else np.zeros_like(suspect)
         pixel = use & ~unpaired if pixels else None
@@ -289,6 +295,7 @@ def test_tiles(
     result = welch_from_stats(
         ref.mean, ref.variance, ref.n, test.mean, test.variance, test.n, pvalue_method=pvalue_method
     )
+    result = _rounding_is_no_difference(result, ref.mean)
     checked = min(ref.n, test.n) >= MIN_PASSES_FOR_NORMALITY
     if not pixels:
         return TileTest(kind, result, own, checked, ref.mean, ref_var, -ref_var, excess=own_excess)
@@ -296,6 +303,19 @@ def test_tiles(
     ref_var = np.where(use, ref.pixel_terms()[0] / ref.n, ref_var)
     suspect = own | (few & ~checked)
     return TileTest(kind, result, suspect, checked, ref.mean, ref_var, -ref_var, pixel=use, excess=own_excess)
+
+
+def _rounding_is_no_difference(result: TTestResult, ref_mean: np.ndarray) -> TTestResult:
+    """`result` with each deterministic difference (both sides constant, or every pass's difference the same) no
+    larger than float rounding of the tile's value (`ROUNDING`) counted as no difference (ZERO_VARIANCE): it is the
+    arithmetic's, not the light's, and would otherwise be `biased` at any size."""
+    with np.errstate(invalid="ignore"):
+        rounding = (result.reason == Reason.DETERMINISTIC_DIFFERENCE) & (
+            np.abs(result.mean_difference) <= ROUNDING * np.abs(ref_mean)
+        )
+    if not rounding.any():
+        return result
+    return dataclasses.replace(result, reason=np.where(rounding, Reason.ZERO_VARIANCE, result.reason).astype(np.uint8))
 
 
 def _take_pixels(result: TTestResult, by_pixels: TTestResult) -> tuple[TTestResult, np.ndarray, np.ndarray]:
@@ -311,14 +331,21 @@ def _take_pixels(result: TTestResult, by_pixels: TTestResult) -> tuple[TTestResu
 
 def paired_differences(ref: TileStats, test: TileStats, pairs: PixelMoments | None = None) -> TileStats:
     """The per-pass differences test - reference of two runs with the same seeds, in the reference's order, with
-    `pairs`, the moments of each pixel's difference over those seeds, where given."""
+    `pairs`, the moments of each pixel's difference over those seeds, where given. A pass's difference no larger
+    than float rounding of its tile sum (`ROUNDING`) is zero: passes that differ only in their last bits are the
+    same passes, not a change that alters a few light paths."""
     if test.seeds == ref.seeds:
         test_sums = test.sums
     else:
         order = {seed: i for i, seed in enumerate(test.seeds)}
         test_sums = test.sums[[order[s] for s in ref.seeds]]
+    differences = test_sums - ref.sums
+    for rows in tile_row_blocks(differences):  # a block at a time: no temporaries the size of the sums
+        d = differences[:, rows]
+        with np.errstate(invalid="ignore"):
+            d[np.abs(d) <= ROUNDING * np.abs(ref.sums[:, rows])] = 0.0
     return TileStats.from_sums(
-        test_sums - ref.sums, ref.seeds, ref.height, ref.width, ref.tile, edges=ref.edges, covered=ref.covered,
+        differences, ref.seeds, ref.height, ref.width, ref.tile, edges=ref.edges, covered=ref.covered,
         pixels=pairs,
     )  # fmt: skip
 

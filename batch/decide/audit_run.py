@@ -162,13 +162,13 @@ def status_of(first: dict | None, confirm: dict | None) -> str:
     return "undecided"
 
 
-#: A relative difference below this wherever a check estimates one is the size of float rounding (float32: 2^-24,
-#: 6e-8, per operation; a path is some hundreds of them): not a difference of the light.
-#: Paired passes that are bit-identical but for rounding make the paired test see such a difference, however small:
-#: Cycles 4.5.4 renders the same scene, seeds and settings twice with tile sums that differ in their last bits (also
-#: with one thread; 5.2.3 renders them bit-identically), and its audit confirmed 15 such cells. They are listed apart
-#: (`summary_of`'s ``rounding``), not as findings: a difference of this size is not one of the light's.
-ROUNDING = 1e-6
+#: A relative difference below this wherever a check estimates one is the size of float rounding
+#: (`welch_core.comparison.ROUNDING`), not a difference of the light. Paired passes that are bit-identical but for
+#: rounding can still make a test see one where the rounding has a sign: Cycles 4.5.4 renders the same scene, seeds
+#: and settings twice with tile sums that differ in their last bits (also with one thread; 5.2.3 renders them
+#: bit-identically), and its audit confirmed 15 such cells. They are listed apart (`summary_of`'s ``rounding``),
+#: not as findings.
+ROUNDING = wc.comparison.ROUNDING
 
 
 def rounding_only(*records: dict | None) -> bool:

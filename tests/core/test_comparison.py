@@ -175,6 +175,30 @@ def test_verdict_biased_on_a_deterministic_difference():
     assert c.n_deterministic == 1
 
 
+def test_a_difference_of_float_rounding_is_no_difference():
+    """Two processes of one build can render the same passes with different last bits (Cycles 4.5.4; 5.0.1's
+    textured scene in a few tiles, the same in every pass): no `biased` for that, constant tiles or paired passes,
+    while a constant difference of 1e-5 (ten times `ROUNDING`) is still one."""
+    from welch_core.comparison import ROUNDING
+
+    rng = np.random.default_rng(42)
+    sums = tile_sum_samples(rng, 48, scene_means(2, 3))
+    sums[:, 1, 1, :] = 0.1 * 1024  # a constant emitter, rendered with other last bits on the test side
+    rounded = sums.copy()
+    rounded[:, 1, 1, :] *= 1 + 1e-9
+    rounded[:, 0, 2, 0] *= 1 + 1e-10 * rng.choice([0, 1], 48)  # paired passes, a few with other last bits
+    paired = compare(make_run(sums, range(48)), make_run(rounded, range(48)), tolerance=0.01)
+    assert paired.verdict == "equivalent" and paired.n_deterministic == 0  # as identical passes would be
+    assert (paired.reasons[1, 1] == Reason.ZERO_VARIANCE).all() and paired.reasons[0, 2, 0] == Reason.ZERO_VARIANCE
+    other = tile_sum_samples(rng, 48, scene_means(2, 3))
+    other[:, 1, 1, :] = 0.1 * 1024 * (1 + 1e-9)
+    unpaired = compare(make_run(sums, range(48)), make_run(other, range(48, 96)))
+    assert unpaired.n_deterministic == 0 and (unpaired.reasons[1, 1] == Reason.ZERO_VARIANCE).all()
+    other[:, 1, 1, :] = 0.1 * 1024 * (1 + 10 * ROUNDING)
+    beyond = compare(make_run(sums, range(48)), make_run(other, range(48, 96)))
+    assert beyond.verdict == "biased" and beyond.n_deterministic == 3
+
+
 def test_constant_tiles_from_split_runs_stay_zero_variance():
     """A constant emitter tile stays ZERO_VARIANCE when runs are rebuilt from stored sums (subset, split)."""
     rng = np.random.default_rng(41)
