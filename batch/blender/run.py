@@ -169,9 +169,11 @@ def render_run(job: RenderJob, progress: Progress, requests=None) -> wc.TileStat
                         continue
                     count = request
                     chunk, todo = todo[: max(count, 0)], todo[max(count, 0) :]
+                    before = stats.n
                     render_passes(renderer, chunk, stats, progress, job.on_nan, job.out, len(chunk) + 1, stop, layers,
                                   job.pass_images)  # fmt: skip
-                    wc.save_stats(job.out, stats, layers)
+                    if stats.n == before:  # the loop saves the passes it added: without any, the file still answers
+                        wc.save_stats(job.out, stats, layers)
                     progress.emit(protocol.Saved(out=job.out, passes=stats.n))
                     if not todo:
                         break
