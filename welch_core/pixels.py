@@ -426,12 +426,13 @@ def global_limit(n: int, tiles: int) -> float:
     of chi²(n - 1) over its median, which independent normal pixels pass with that chance (a tile's channels share
     its noise: counted once). At 2 passes a side of a 32x32 image in 16-px tiles (8 tiles) it is 9.7: the median
     of so few passed 3 in 9 of 100 A/A trials of the diffuse corner."""
-    from scipy import optimize
-    from scipy import stats as scipy_stats
+    from scipy import special  # not scipy.stats: its import alone (0.5 s) is most of `compare`'s time budget
 
     k, df = (tiles + 1) // 2, n - 1  # the median passes x where k of the tiles do (numpy's median: at most the kth)
-    p = optimize.brentq(lambda q: scipy_stats.binom.sf(k - 1, tiles, q) - TRIPWIRE_ALPHA, 1e-300, 0.5, xtol=1e-300)
-    return max(TRIPWIRE_RATIO, float(scipy_stats.chi2.isf(p, df) / scipy_stats.chi2.median(df)))
+    # The chance q a tile passes x at which k or more of the tiles do with chance TRIPWIRE_ALPHA: P(Binomial(tiles,
+    # q) >= k) = I_q(k, tiles - k + 1), the regularized incomplete beta function, solved for q.
+    p = special.betaincinv(k, tiles - k + 1, TRIPWIRE_ALPHA)
+    return max(TRIPWIRE_RATIO, float(_chi2_isf(p, df) / _chi2_median(df)))
 
 
 def local_limit(n: int, count: int) -> float:
@@ -439,9 +440,21 @@ def local_limit(n: int, count: int) -> float:
     tripwire): `LOCAL_MARGIN` x the upper `TRIPWIRE_ALPHA` / `count` point of chi²(n - 1) / (n - 1), what one
     tile-channel of independent normal pixels exceeds with that chance (V taken as exact: with the pixels' many
     degrees of freedom it nearly is; where a few pixels carry it, s² and V rise together and the ratio nears 1)."""
-    from scipy import stats as scipy_stats
+    return LOCAL_MARGIN * float(_chi2_isf(TRIPWIRE_ALPHA / max(count, 1), n - 1)) / (n - 1)
 
-    return LOCAL_MARGIN * float(scipy_stats.chi2.isf(TRIPWIRE_ALPHA / max(count, 1), n - 1)) / (n - 1)
+
+def _chi2_isf(p: float, df: float) -> float:
+    """The upper `p` point of chi²(`df`) (what scipy.stats.chi2.isf computes, by the same function)."""
+    from scipy import special
+
+    return float(special.chdtri(df, p))
+
+
+def _chi2_median(df: float) -> float:
+    """The median of chi²(`df`) (scipy.stats.chi2.median's value, by the same function)."""
+    from scipy import special
+
+    return float(2 * special.gammaincinv(df / 2, 0.5))
 
 
 def tripwire(*runs) -> Tripwire:
@@ -460,8 +473,6 @@ def tripwire(*runs) -> Tripwire:
 
     Cheap: the coarser tiles' V are block sums of the finer ones' (`PixelMoments.terms`, kept for the comparison
     that follows) and their tile sums block sums of the stored ones."""
-    from scipy import stats as scipy_stats
-
     ratios, contradicted, local, tiles = [], 0, [], 0
     for run in runs:
         if run.n < 2:
@@ -477,7 +488,7 @@ def tripwire(*runs) -> Tripwire:
                 contradicted += int(((coarse.variance > 0) & ~(v > 0)).sum())
                 tiles += int(valid.any(axis=-1).sum())
                 if valid.any():
-                    ratios.append(r[valid] / (scipy_stats.chi2.median(run.n - 1) / (run.n - 1)))
+                    ratios.append(r[valid] / (_chi2_median(run.n - 1) / (run.n - 1)))
             if valid.any():
                 local.append((run.n, coarse.tile, int(valid.sum()), np.where(valid, r, -np.inf)))
             if max(run.tiles_y, run.tiles_x) <= factor:
