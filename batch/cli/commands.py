@@ -149,7 +149,7 @@ def _add_check(sub) -> None:
         "stop gives up at most 5%% of the power against such a bias)",
     )
     add_options(k, "check", ("alpha",))
-    add_options(k, "check", ("max_passes", "max_seconds"))
+    add_options(k, "check", ("max_passes", "max_seconds", "min_passes"))
     add_options(k, "check", ("spp", "tile", "resolution", "device", "sampling_pattern", "lobes"))
     add_options(k, "check", TEST_SIDE, side="test")
     k.add_argument("--unpaired", action="store_true", help="disjoint seeds even on one build (an A/A check)")
@@ -334,9 +334,9 @@ def _add_audit(sub) -> None:
         "0), and with --releases the first release that shows it. Says up front how long it expects to take, "
         "prints a line per cell, writes summary.json, junit.xml and index.html (the audit page); --resume reuses "
         "every cell already decided.",
-        epilog="Exit codes: 0 no noise-only setting is confirmed biased, 1 one is (the default against itself "
-        "included), 2 a usage error or a cell that could not run, 3 a control was found in no scene (the audit "
-        "could not have found a bias).",
+        epilog="Exit codes: 0 no noise-only setting is confirmed biased beyond float rounding, 1 one is (the default "
+        "against itself included), 2 a usage error or a cell that could not run, 3 a control was found in no scene "
+        "(the audit could not have found a bias).",
     )
     a.add_argument("blends", nargs="*", metavar="SCENE.blend", help="scene files to audit")
     a.add_argument("--scene", dest="scenes", action="append", default=[], metavar="NAME",
@@ -355,7 +355,11 @@ def _add_audit(sub) -> None:
                    "audited release is the last")  # fmt: skip
     a.add_argument("--bisect-passes", type=jobs.positive_int, default=32, metavar="N",
                    help="passes per release and side of a bisect (default 32)")  # fmt: skip
-    add_options(a, "audit", ("resolution", "tile", "max_passes", "max_seconds", "alpha", "tolerance", "seed_offset"))
+    add_options(
+        a,
+        "audit",
+        ("resolution", "tile", "max_passes", "max_seconds", "min_passes", "alpha", "tolerance", "seed_offset"),
+    )
     add_cluster_arguments(a)
     a.add_argument("--plan", action="store_true", help="say what the release supports, the cells, the level and "
                    "the time expected, and render nothing")  # fmt: skip
@@ -804,7 +808,8 @@ def cmd_audit(args) -> int:
         build = Build("current")
     releases = tuple(build_of(spec) for spec in args.releases or ())
     spec = audit.AuditSpec(name="cycles", scenes=scenes, changes=(audit.AA, *changes), build=build,
-                           max_passes=args.max_passes, max_seconds=args.max_seconds, alpha=args.alpha,
+                           max_passes=args.max_passes, max_seconds=args.max_seconds, min_passes=args.min_passes,
+                           alpha=args.alpha,
                            tolerance=args.tolerance, resolution=tuple(args.resolution) if args.resolution else None,
                            tile=args.tile, seed_offset=args.seed_offset, releases=releases,
                            bisect_passes=args.bisect_passes)  # fmt: skip
@@ -825,7 +830,14 @@ def _run_audit(spec, out, resume: bool, cluster, plan_only: bool = False) -> int
         say(f"audit: {estimate(plan).text()}")
         return Exit.OK
     _results, summary = run_audit(plan, out, support, resume, cluster, say)
-    counts = ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in summary["counts"].items() if v)
+    from ..present import fmt
+
+    found = sum(len(scenes) for scenes in summary["controls_found"].values())
+    rounding = len(summary["rounding"])
+    counts = dict(summary["counts"], biased=summary["counts"]["biased"] - found - rounding)  # a control found is no
+    counts = ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in counts.items() if v)  # finding
+    counts += f", {rounding} biased at the scale of float rounding" if rounding else ""
+    counts += f", {fmt.count(found, 'control')} found" if found else ""
     say(f"audit: {counts}; findings: {', '.join(summary['findings']) or 'none'}"
         + (f"; controls found nowhere: {', '.join(summary['unfound_controls'])}" if summary["unfound_controls"]
            else ""))  # fmt: skip

@@ -58,8 +58,8 @@ LOBES = COMPONENTS
 _NAME = re.compile(r"^[a-z][a-z0-9_]*$")
 _KEYS = ("name", "setting", "reference", "test", "pattern", "test_pattern", "test_device", "documented", "samples",
          "why")  # fmt: skip
-_AUDIT_KEYS = ("name", "scenes", "blends", "changes", "only", "resolution", "tile", "passes", "seconds", "alpha",
-               "tolerance")  # fmt: skip
+_AUDIT_KEYS = ("name", "scenes", "blends", "changes", "only", "resolution", "tile", "passes", "seconds", "min_passes",
+               "alpha", "tolerance")  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -275,8 +275,9 @@ def scenes_of(names: list[str] | tuple[str, ...], blends: list[str] | tuple[str,
 @dataclass(frozen=True)
 class AuditSpec:
     """What an audit is asked: its scenes, changes (the A/A row first), release and per-cell budget (passes a
-    side, and render seconds where given), the audit's alpha, the tolerance of `equivalent`, the image, the
-    first seed, and the releases a confirmed difference is bisected over (oldest first; empty: no bisect)."""
+    side, and render seconds where given, with a floor of passes a side that the seconds do not cut), the audit's
+    alpha, the tolerance of `equivalent`, the image, the first seed, and the releases a confirmed difference is
+    bisected over (oldest first; empty: no bisect)."""
 
     name: str
     scenes: tuple[Scene, ...]
@@ -284,6 +285,7 @@ class AuditSpec:
     build: Build = Build("current")  # this bpy (`batch.decide.matrix.build_of` makes another)
     max_passes: int = options.default("max_passes", "audit")
     max_seconds: float | None = options.default("max_seconds", "audit")
+    min_passes: int = options.default("min_passes", "audit")
     alpha: float = options.default("alpha", "audit")
     tolerance: float | None = options.default("tolerance", "audit")
     resolution: tuple[int, int] | None = None
@@ -292,14 +294,22 @@ class AuditSpec:
     releases: tuple[Build, ...] = ()
     bisect_passes: int = options.default("passes", "bisect")
 
+    @property
+    def floor(self) -> int | None:
+        """The passes a side each check renders whatever their seconds (None: no time budget, every pass of the
+        budget renders)."""
+        return None if self.max_seconds is None else min(self.min_passes, self.max_passes)
+
     def fingerprint(self) -> dict:
-        """What a resumed audit must share with the one it continues (its cells' level and budget depend on it)."""
+        """What a resumed audit must share with the one it continues (its cells' level and budget depend on it; a
+        floor of passes may differ: the cells it would change run again)."""
         return {
             "scenes": [dataclasses.asdict(s) for s in self.scenes],
             "changes": [c.to_json() for c in self.changes],
             "build": dataclasses.asdict(self.build),
             "max_passes": self.max_passes,
             "max_seconds": self.max_seconds,
+            "min_passes": self.floor,
             "alpha": self.alpha,
             "tolerance": self.tolerance,
             "resolution": list(self.resolution) if self.resolution else None,
@@ -455,7 +465,8 @@ def cell_seconds(spec: AuditSpec, cell: Cell, pixels: int, share: float = 1.0) -
     and its passes' render seconds (both sides), at most the budget's render seconds."""
     render = 2 * share * spec.max_passes * cell.change.samples * pixels * SAMPLE_SECONDS
     if spec.max_seconds is not None:
-        render = min(render, spec.max_seconds)
+        floor = 2 * spec.floor * cell.change.samples * pixels * SAMPLE_SECONDS
+        render = max(min(render, spec.max_seconds), floor)
     return CHECK_OVERHEAD + WALL_SHARE * render
 
 
@@ -520,7 +531,8 @@ def load_audit_file(path: Path | str) -> AuditFile:
             changes = [c for c in changes if c.name in only]
     values = {}
     for key, dest in (("resolution", "resolution"), ("tile", "tile"), ("passes", "max_passes"),
-                      ("seconds", "max_seconds"), ("alpha", "alpha"), ("tolerance", "tolerance")):  # fmt: skip
+                      ("seconds", "max_seconds"), ("min_passes", "min_passes"), ("alpha", "alpha"),
+                      ("tolerance", "tolerance")):  # fmt: skip
         if key in head:
             try:
                 values[dest] = options.OPTIONS[dest].convert(f"[audit] {key!r}", head[key])
@@ -551,7 +563,27 @@ def cells_per_row(plan: AuditPlan) -> dict[str, list[Cell]]:
 def budget_text(spec: AuditSpec) -> str:
     """A cell's budget in words."""
     seconds = f" and {spec.max_seconds:g} s of rendering" if spec.max_seconds is not None else ""
-    size = "x".join(map(str, spec.resolution)) if spec.resolution else "each scene's own size"
+    floor = f" (at least {spec.floor} passes a side whatever their seconds)" if spec.floor is not None else ""
+    if spec.resolution:
+        size = "x".join(map(str, spec.resolution))
+    elif all(s.scene is not None for s in spec.scenes):
+        size = "64x64 (the built-in scenes' own size)"
+    else:
+        size = "each scene's own size (64x64 for a built-in one)"
     tolerance = "off" if spec.tolerance is None else f"±{100 * spec.tolerance:g} %"
-    return (f"at most {spec.max_passes} passes a side{seconds} a cell, {size}, {spec.tile}-px tiles, tolerance "
-            f"{tolerance}")  # fmt: skip
+    return (f"at most {spec.max_passes} passes a side{seconds} a cell{floor}, {size}, {spec.tile}-px tiles, "
+            f"tolerance {tolerance}")  # fmt: skip
+
+
+def equal_budget_text(spec: AuditSpec) -> str:
+    """How every cell's budget is the same, in words (the page and the findings say it)."""
+    from .check import FLOOR_LIMIT
+
+    if spec.max_seconds is None:
+        return f"every cell's checks render the same {spec.max_passes} passes a side at most"
+    return (f"every cell's checks have the same budget: at most {spec.max_passes} passes a side and "
+            f"{spec.max_seconds:g} render seconds (both sides together), whichever ends first, and at least "
+            f"{spec.floor} passes a side whatever their seconds (up to {FLOOR_LIMIT:g} times the budget): equal in "
+            f"render seconds for every cell whose first {spec.floor} passes fit in them, equal in passes for a cell "
+            "whose passes are slower (a scene that builds much before its first sample); a cell's samples per pass "
+            "are its change's")  # fmt: skip

@@ -31,7 +31,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from .._siblings import welch_core as wc
-from ..errors import BatchError, Exit
+from ..errors import BatchError, Exit, Undecided
 from ..jobs import protocol
 from ..jobs.distributed import cluster as side_cluster
 from ..jobs.job import NO_GPU_MESSAGE, RenderJob
@@ -44,10 +44,11 @@ from .check import CheckRequest, check_job, run_check
 STATE_FILE = "audit.json"
 STATE_VERSION = 1
 
-#: A cell's status: confirmed `biased`, `biased` at first but not on fresh seeds, `equivalent`, every pass
-#: bit-identical on both sides without the passes to claim `equivalent` yet (`identical`), neither (`undecided`), a
-#: setting the release lacks, or a cell that could not run.
-STATUSES = ("biased", "unconfirmed", "equivalent", "identical", "undecided", "not_applicable", "error")
+#: A cell's status: confirmed `biased`, `biased` at first but not on fresh seeds, `equivalent` (every pass
+#: bit-identical on both sides counts only from `welch_core.identical_passes` passes: fewer identical ones are
+#: `undecided`, as `check` says), neither (`undecided`; also a cell whose time budget ended before two passes a
+#: side), a setting the release lacks, or a cell that could not run.
+STATUSES = ("biased", "unconfirmed", "equivalent", "undecided", "not_applicable", "error")
 
 
 @dataclass
@@ -69,13 +70,20 @@ class CellResult:
 
     @property
     def finding(self) -> bool:
-        """A confirmed difference of a change documented to change only the noise."""
-        return self.status == "biased" and not self.cell.change.control
+        """A confirmed difference of a change documented to change only the noise, larger than float rounding (a
+        rounding-level one is listed apart: Cycles 4.5.4 renders the same passes twice with such differences)."""
+        return self.status == "biased" and not self.cell.change.control and not self.rounding
+
+    @property
+    def rounding(self) -> bool:
+        """A confirmed difference no larger than float rounding in any tile its checks estimate (`rounding_only`)."""
+        return self.status == "biased" and rounding_only(self.first, self.confirm)
 
     @property
     def found(self) -> bool:
-        """A control found: biased by design and confirmed so."""
-        return self.status == "biased" and self.cell.change.control
+        """A control found: biased by design and confirmed so, beyond float rounding (a control confirmed only at
+        the scale of rounding is one its scene does not exercise: the scene's settings changed, not its light)."""
+        return self.status == "biased" and self.cell.change.control and not self.rounding
 
     def to_json(self) -> dict:
         return {
@@ -90,12 +98,20 @@ class CellResult:
             "explain": self.explain,
             "bisect": self.bisect,
             "command": self.command,
+            "rounding": self.rounding,
         }
 
     @classmethod
     def from_json(cls, cell: Cell, record: dict) -> CellResult:
+        """A recorded cell, its status and sentence said again from its checks' records (as this version of the
+        tool says them: an earlier one called too few identical passes `identical`)."""
         keys = ("status", "message", "seconds", "first", "confirm", "explain", "bisect", "command")
-        return cls(cell, reused=True, **{k: record.get(k) for k in keys})
+        result = cls(cell, reused=True, **{k: record.get(k) for k in keys})
+        if result.first is not None and result.status in ("biased", "unconfirmed", "equivalent", "identical",
+                                                           "undecided"):  # fmt: skip
+            result.status = status_of(result.first, result.confirm)
+            result.message = cell_sentence(cell, result.status, result.first, result.confirm)
+        return result
 
 
 def check_record(summary: dict, folder: Path, out: Path) -> dict:
@@ -117,10 +133,13 @@ def check_record(summary: dict, folder: Path, out: Path) -> dict:
         "most_significant": outcome.get("most_significant"),
         "claim_tile": outcome.get("claim_tile"),
         "identical": bool(outcome.get("identical")),
+        "identical_needed": outcome.get("identical_needed"),
+        "reason": outcome.get("reason"),
         "tolerance": outcome.get("tolerance"),
         "ruled_out": {"tile": bounded[0]["tile"], "bias": bounded[0]["ruled_out"]} if bounded else None,
         "passes": check.get("passes", summary.get("n_test")),
         "render_seconds": looks[-1]["seconds"] if looks else 0.0,
+        "ended_pass": check.get("ended_pass"),
         "paired": check.get("paired"),
         "seeds": [summary["reference"]["seeds"], summary["test_run"]["seeds"]],
         "renderer": summary["test_run"]["info"].get("renderer_version"),
@@ -131,14 +150,54 @@ def check_record(summary: dict, folder: Path, out: Path) -> dict:
 
 
 def status_of(first: dict | None, confirm: dict | None) -> str:
-    """A cell's status from its first check and its confirmation (both records of `check_record`)."""
+    """A cell's status from its first check and its confirmation (both records of `check_record`). Identical
+    passes are `equivalent` only where the check says so (from `identical_needed` passes on): fewer do not rule out
+    a change that alters one pass in ten, and the cell is `undecided`."""
     if first is None:
         return "error"
     if first["verdict"] == "biased":
         return "biased" if confirm is not None and confirm["verdict"] == "biased" else "unconfirmed"
     if first["verdict"] == "equivalent":
         return "equivalent"
-    return "identical" if first.get("identical") else "undecided"
+    return "undecided"
+
+
+#: A relative difference below this wherever a check estimates one is the size of float rounding (float32: 2^-24,
+#: 6e-8, per operation; a path is some hundreds of them): not a difference of the light.
+#: Paired passes that are bit-identical but for rounding make the paired test see such a difference, however small:
+#: Cycles 4.5.4 renders the same scene, seeds and settings twice with tile sums that differ in their last bits (also
+#: with one thread; 5.2.3 renders them bit-identically), and its audit confirmed 15 such cells. They are listed apart
+#: (`summary_of`'s ``rounding``), not as findings: a difference of this size is not one of the light's.
+ROUNDING = 1e-6
+
+
+def rounding_only(*records: dict | None) -> bool:
+    """Whether every difference the checks' records estimate (the whole image's, the largest tile's, the most
+    significant one's) is below `ROUNDING` in size."""
+    found = [r.get(key) for r in records if r for key in ("whole_image", "largest", "most_significant")]
+    sizes = [abs(d["estimate"]) for d in found if d and d.get("estimate") is not None]
+    return bool(sizes) and max(sizes) < ROUNDING
+
+
+def rounding_text(*records: dict | None) -> str:
+    """The size of a rounding-level difference, in words."""
+    found = [r.get(key) for r in records if r for key in ("whole_image", "largest", "most_significant")]
+    size = max(abs(d["estimate"]) for d in found if d and d.get("estimate") is not None)
+    return (f"the largest difference estimated in any tile is {size:.1e} relative (below {ROUNDING:g}, the size of "
+            "float rounding): the passes differ in their rounding, not in their light")  # fmt: skip
+
+
+def identical_needed(record: dict) -> int:
+    """The identical passes a side that rule out, at the record's level, a change altering one pass in ten
+    (`welch_core.identical_passes`; the record's own where it has it)."""
+    return record.get("identical_needed") or wc.identical_passes(record["alpha"])
+
+
+def cut_short(record: dict | None, floor: int | None) -> bool:
+    """Whether a check ended undecided with fewer passes a side than the audit's floor now asks (a time budget
+    that ended it before a floor existed, or a renderer that hung in the floor's passes)."""
+    return record is not None and floor is not None and record["verdict"] == "inconclusive" and (
+        record["passes"] or 0) < floor  # fmt: skip
 
 
 # -- the checks of a cell --------------------------------------------------------------------------------------------
@@ -179,6 +238,7 @@ def cell_job(plan: AuditPlan, cell: Cell, role: str, folder: Path, resume: bool 
         scheduler=scheduler,
         max_passes=spec.max_passes,
         max_seconds=spec.max_seconds,
+        min_passes=spec.floor,
     )
     job = check_job(request)
     # The reference side's own overrides: its default, set explicitly (``check`` gives its reference none).
@@ -188,7 +248,8 @@ def cell_job(plan: AuditPlan, cell: Cell, role: str, folder: Path, resume: bool 
 def check_command(plan: AuditPlan, cell: Cell, role: str, out: Path) -> str:
     """The ``check`` command line that renders the check of a cell's `role` again (the same seeds, level and
     budget) into `out`. The reference side of ``check`` takes no overrides: a scene file must hold the reference
-    side's values itself (a built-in scene does), which the line then says."""
+    side's values itself (a built-in scene does), which the line then says. A release's bpy (``--release``) is
+    named by the command that prints its Python (``welch-bias bpy VERSION``), not by this machine's path."""
     spec, change, scene = plan.spec, cell.change, cell.scene
     reference, test = change.sides(UNBIASED_OVERRIDES if role == "explain" else ())
     argv = ["welch-bias", "check", *([scene.blend] if scene.blend else ["--scene", scene.scene])]
@@ -197,15 +258,18 @@ def check_command(plan: AuditPlan, cell: Cell, role: str, out: Path) -> str:
     argv += ["--spp", str(change.samples), "--tile", str(spec.tile)]
     if spec.resolution:
         argv += ["--resolution", *map(str, spec.resolution)]
+    release = is_release(spec.build)
+    python = PYTHON_OF_RELEASE if release else spec.build.python
     for flag, value in (("--sampling-pattern", change.pattern), ("--test-sampling-pattern", change.test_pattern),
-                        ("--test-device", change.test_device), ("--python", spec.build.python),
+                        ("--test-device", change.test_device), ("--python", python),
                         ("--blender", spec.build.blender)):  # fmt: skip
         if value:
             argv += [flag, value]
     argv += ["--alpha", f"{plan.level:.6g}", "--tolerance", "off" if spec.tolerance is None else
              f"{100 * spec.tolerance:g}%"]  # fmt: skip
-    argv += ["--max-passes", str(spec.max_passes)] + (["--max-seconds", f"{spec.max_seconds:g}"] if spec.max_seconds
-                                                       else [])  # fmt: skip
+    argv += ["--max-passes", str(spec.max_passes)]
+    if spec.max_seconds:
+        argv += ["--max-seconds", f"{spec.max_seconds:g}", "--min-passes", str(spec.floor)]
     argv += ["--seed-offset", str(spec.seed_offset + ROLES[role] * spec.max_passes)]
     if role == "confirm":
         argv += ["--pixel-variance", "off", "--lobes", ",".join(LOBES)]
@@ -213,9 +277,24 @@ def check_command(plan: AuditPlan, cell: Cell, role: str, out: Path) -> str:
         argv.append("--unpaired")
     argv += ["--out", str(out)]
     line = shlex.join(argv)
+    if release:
+        line = line.replace(PYTHON_OF_RELEASE, f'"$(welch-bias bpy {spec.build.label})"')
     if scene.blend and reference:
         line += f"  (with {', '.join(reference)} in the scene file itself)"
     return line
+
+
+#: Where `check_command` names a release's Python by the command that prints it.
+PYTHON_OF_RELEASE = "PYTHON_OF_RELEASE"
+
+
+def is_release(build) -> bool:
+    """Whether `build` is a cached release's bpy (``--release VERSION``: ``python -m batch bpy VERSION`` made it)."""
+    from ..jobs import releases
+
+    if build.python is None:
+        return False
+    return str(build.python) == str(releases.python_of(releases.cache_folder() / build.label))
 
 
 def bisect_job(plan: AuditPlan, cell: Cell) -> tuple[RenderJob, dict]:
@@ -239,7 +318,9 @@ def bisect_job(plan: AuditPlan, cell: Cell) -> tuple[RenderJob, dict]:
 def refuse_other(out: Path, stored: dict | None, spec: AuditSpec) -> None:
     """Raise where the audit in `out` (its stored spec) is not `spec`: a resumed audit must be the same one."""
     asked = spec.fingerprint()
-    differs = [key for key in asked if not isinstance(stored, dict) or stored.get(key) != asked[key]]
+    # The floor may differ (an audit started before it, or with another): the cells it would change run again.
+    differs = [key for key in asked if key != "min_passes" and (not isinstance(stored, dict) or
+                                                                 stored.get(key) != asked[key])]  # fmt: skip
     if differs:
         raise BatchError(f"can't resume the audit in {out}: it was started with other {', '.join(differs)} (the "
                          "cells' level and budget depend on them): use another --out")  # fmt: skip
@@ -277,6 +358,7 @@ class Audit:
     def __post_init__(self):
         self.out = Path(self.out)
         self.quiet = Quiet()
+        self.again: list[str] = []  # recorded cells that run again: an error, or cut short below the floor
 
     # -- state ---------------------------------------------------------------------------------------------------
 
@@ -302,6 +384,13 @@ class Audit:
             raise BatchError(f"{path} was written by another version of this tool: start the audit in another --out")
         refuse_other(self.out, state.get("spec"), self.plan.spec)
         self.records = dict(state.get("cells", {}))
+        floor = self.plan.spec.floor
+        for key, record in list(self.records.items()):
+            checks = [record.get("first"), record.get("confirm")]
+            if record.get("status") == "error" or (record.get("status") == "undecided" and checks[0] is None) or any(
+                    cut_short(c, floor) for c in checks):  # fmt: skip
+                self.again.append(key)
+                del self.records[key]
 
     def save(self) -> None:
         state = {
@@ -328,6 +417,9 @@ class Audit:
         say(f"audit {plan.spec.name}: {len(plan.spec.changes)} changes x {len(plan.spec.scenes)} scenes, "
             f"{plan.k} cells ({len(plan.not_applicable)} not applicable), {plans.budget_text(plan.spec)}")  # fmt: skip
         say(f"audit: {plan.alpha_text()}")
+        if self.again:
+            say(f"audit: {fmt.count(len(self.again), 'recorded cell')} run again (an error, or passes a side cut "
+                f"below the floor of {plan.spec.floor}): {', '.join(self.again)}")  # fmt: skip
         say(f"audit: {len(done)} cells decided already; " + ahead.text() if done else f"audit: {ahead.text()}")
         results, spent, modelled = [], 0.0, 0.0
         workers, scheduler = self.cluster
@@ -338,9 +430,9 @@ class Audit:
                 if not result.reused:
                     spent += result.seconds
                     modelled += plans.estimate(plans.AuditPlan(plan.spec, (cell,))).expected
-                left = plans.estimate(plan, {c.key for c in plan.cells[:number]}).expected
+                left = plans.estimate(plan, done | {c.key for c in plan.cells[:number]}).expected  # decided: none
                 left *= spent / modelled if modelled else 1.0
-                tail = f"; about {fmt.duration(left)} left" if number < plan.k else ""
+                tail = f"; about {fmt.duration(left)} left" if number < plan.k and left > 0 else ""
                 say(f"audit: {number}/{plan.k} {cell.change.name} on {cell.scene.label}: "
                     f"{'reused: ' if result.reused else ''}{result.message}{tail}")  # fmt: skip
         results += [CellResult(cell, "not_applicable", f"not applicable: {why}") for cell, why in plan.not_applicable]
@@ -349,7 +441,9 @@ class Audit:
     def result(self, cell: Cell, where=None) -> CellResult:
         """The cell's result: its record where an earlier run decided it, else its checks run now (and recorded)."""
         if cell.key in self.records:
-            return CellResult.from_json(cell, self.records[cell.key])
+            return self._reused(cell)
+        if cell.key in self.again:
+            shutil.rmtree(self.folder(cell), ignore_errors=True)  # its checks start again, with this floor
         start = time.perf_counter()
         result = self._run_cell(cell, where)
         result.seconds = time.perf_counter() - start
@@ -368,10 +462,21 @@ class Audit:
         _verdict, summary = run_check(job, self.quiet, where)
         return check_record(summary, folder, self.out)
 
+    def _reused(self, cell: Cell) -> CellResult:
+        """A recorded cell, said as this version says it (its status, sentence, command and bisect)."""
+        result = CellResult.from_json(cell, self.records[cell.key])
+        if result.status == "biased" and not cell.change.control:  # a finding, or one at the scale of rounding
+            result.command = check_command(self.plan, cell, "confirm", self.folder(cell) / "again")
+        if result.bisect and result.bisect.get("steps") is not None:
+            result.bisect["message"] = bisect_sentence(result.bisect, self._bisect_builds(), self.plan.spec)
+        return result
+
     def _run_cell(self, cell: Cell, where) -> CellResult:
         try:
             first = self._check(cell, "first", where)
             confirm = self._check(cell, "confirm", where) if first["verdict"] == "biased" else None
+        except Undecided as exc:  # its time budget ended the first passes: no look, no verdict, not the tool's error
+            return CellResult(cell, "undecided", f"not decided, too few passes within the budget: {exc}")
         except BatchError as exc:
             if NO_GPU_MESSAGE in str(exc):
                 shutil.rmtree(self.folder(cell), ignore_errors=True)
@@ -379,7 +484,7 @@ class Audit:
             return CellResult(cell, "error", f"error: {' '.join(str(exc).split())}")
         status = status_of(first, confirm)
         result = CellResult(cell, status, cell_sentence(cell, status, first, confirm), first=first, confirm=confirm)
-        if result.finding:
+        if result.status == "biased" and not cell.change.control:  # a finding, or one at the scale of rounding
             result.command = check_command(self.plan, cell, "confirm", self.folder(cell) / "again")
         if result.finding and not cell.change.aa:  # the default against itself: no change to explain
             result.explain = self._explain(cell, where)
@@ -397,6 +502,11 @@ class Audit:
             return {"error": " ".join(str(exc).split())}
         return record | {"meaning": explain_sentence(record)}
 
+    def _bisect_builds(self) -> list:
+        """The builds a bisect looks at, oldest first: the audit's releases, then the audited one."""
+        spec = self.plan.spec
+        return [b for b in spec.releases if b.label != spec.build.label] + [spec.build]
+
     def _bisect(self, cell: Cell) -> dict | None:
         """The first release of the audit's `releases` (then the audited one) that shows the difference."""
         spec = self.plan.spec
@@ -404,7 +514,7 @@ class Audit:
             return None
         from .matrix import run_bisect
 
-        builds = [b for b in spec.releases if b.label != spec.build.label] + [spec.build]
+        builds = self._bisect_builds()
         job, changes = bisect_job(self.plan, cell)
         folder = self.folder(cell) / "bisect"
         try:
@@ -418,14 +528,38 @@ class Audit:
             path = folder / "renders" / f"{build.label}.npz"
             with contextlib.suppress(OSError, wc.WelchInputError):
                 versions[build.label] = wc.load_stats(path, pixels=False).info.renderer_version
-        if "current" in versions and record["message"]:  # this process's bpy, by its release
-            record["message"] = record["message"].replace("current", f"current ({versions['current']})")
+        record["message"] = bisect_sentence(record, builds, spec)
         for step in record["steps"]:
             step["pair"]["folder"] = os.path.relpath(step["pair"]["folder"], self.out) if step["pair"]["folder"] else ""
         return record
 
 
 # -- words ----------------------------------------------------------------------------------------------------------
+
+
+def bisect_sentence(record: dict, builds: list, spec: AuditSpec) -> str:
+    """What a bisect found, each build by its release ("5.0.1 (current)"), the build before the first that shows
+    the difference with what its step said (not shown is not absent: its verdict and interval)."""
+    versions = record.get("versions") or {}
+
+    def name(label: str) -> str:
+        version = (versions.get(label) or "").removesuffix(" LTS")
+        return f"{version} ({label})" if version and version != label else label
+
+    first, steps = record.get("first"), {s["build"]: s for s in record.get("steps", [])}
+    if first is None:
+        text = record.get("message") or ""
+        for label in steps:
+            text = text.replace(f"{label} ", f"{name(label)} ", 1)
+        return text
+    order = [b.label for b in builds]
+    before = [label for label in order[: order.index(first)] if label in steps] if first in order else []
+    if not before:
+        return f"the difference appears in {name(first)}"
+    good = steps[before[-1]]["pair"]
+    whole = f", whole image {fmt.difference(good['whole_image'])}" if good.get("whole_image") else ""
+    return (f"the difference appears in {name(first)} and is not shown in {name(before[-1])}, the build before it "
+            f"({good['verdict']} at {spec.bisect_passes} passes a side{whole})")  # fmt: skip
 
 
 def claim_text(record: dict) -> str:
@@ -438,22 +572,42 @@ def claim_text(record: dict) -> str:
 def cell_sentence(cell: Cell, status: str, first: dict, confirm: dict | None) -> str:
     """A cell in a line, as the page and the log say it."""
     passes = f"{first['passes']} passes a side"
+    if status == "equivalent" and first.get("identical"):
+        return (f"no difference: every pass identical on both sides ({passes}; {identical_needed(first)} rule out a "
+                "change that alters one pass in ten)")  # fmt: skip
     if status == "equivalent":
         return f"no difference {claim_text(first)} ({passes})"
     if status == "biased":
         whole = fmt.difference(confirm["whole_image"]) if confirm["whole_image"] else "—"
         what = "found (biased by design)" if cell.change.control else "biased"
-        return (f"{what}: whole image {whole} (confirmed on fresh seeds: {confirm['passes']} passes, p "
+        if rounding_only(first, confirm):
+            what = "biased at the scale of float rounding" + (", not exercised" if cell.change.control else "")
+            strongest = f"; {rounding_text(first, confirm)}"
+        else:
+            strongest = strongest_text(confirm)
+        return (f"{what}: whole image {whole}{strongest} (confirmed on fresh seeds: {confirm['passes']} passes, p "
                 f"{fmt.p_value(confirm['p_value'])}; first {passes})")  # fmt: skip
     if status == "unconfirmed":
         again = f"{confirm['verdict'].replace('_', ' ')}, whole image {fmt.difference(confirm['whole_image'])}"
         return f"biased on its first seeds ({passes}), not on fresh ones ({confirm['passes']} passes a side: {again})"
-    if status == "identical":
-        return f"every pass identical on both sides ({passes}): the change left them as they were"
+    if first.get("identical"):
+        return (f"not decided: every pass identical on both sides so far ({passes}; {identical_needed(first)} would "
+                "rule out a change that alters one pass in ten)")  # fmt: skip
     ruled = first.get("ruled_out")
     bound = f"; a bias beyond {100 * ruled['bias']:.2f} % ruled out per {ruled['tile']}x{ruled['tile']} tile" if (
         ruled) else ""  # fmt: skip
     return f"not decided ({passes}){bound}"
+
+
+def strongest_text(record: dict) -> str:
+    """The most significant tile of a check's record, where it is a tile ("; most significant -3.10 % [...] in R of
+    a 16x16 tile at 0, 16"): what rejected, where the whole image's interval may hold 0."""
+    strongest = record.get("most_significant") or {}
+    if not strongest.get("tile") or strongest.get("estimate") is None:
+        return ""
+    size = strongest["tile"]
+    return (f"; most significant {fmt.difference(strongest)} in {strongest['channel']} of a {size}x{size} tile at "
+            f"{strongest['x']}, {strongest['y']}")  # fmt: skip
 
 
 def explain_sentence(record: dict) -> str:
@@ -479,7 +633,8 @@ def unfound_controls(plan: AuditPlan, results: list[CellResult]) -> list[str]:
 
 
 def exit_code(plan: AuditPlan, results: list[CellResult]) -> int:
-    """1 where a setting documented to change only the noise is confirmed biased (the A/A row included), else 2
+    """1 where a setting documented to change only the noise is confirmed biased beyond float rounding (the A/A row
+    included), else 2
     where a cell could not run, else 3 where a control was found in no scene (the audit can't vouch for its
     power), else 0."""
     if any(r.finding for r in results):
@@ -509,8 +664,15 @@ def summary_of(plan: AuditPlan, results: list[CellResult], seconds: float | None
         "seconds": round(sum(r.seconds for r in results), 1),  # the cells' own, those reused included
         "wall_seconds": None if seconds is None else round(seconds, 1),  # this run's
         "counts": counts,
+        "equal_budget": plans.equal_budget_text(plan.spec),
+        "controls_found": {
+            c.name: [r.cell.scene.label for r in results if r.found and r.cell.change.name == c.name]
+            for c in plan.spec.changes
+            if c.control
+        },
         "unfound_controls": unfound_controls(plan, results),
         "findings": [r.cell.key for r in findings],
+        "rounding": [r.cell.key for r in results if r.rounding],
         "changes": [c.to_json() for c in plan.spec.changes],
         "scenes": [s.label for s in plan.spec.scenes],
         "cells": [r.to_json() for r in results],

@@ -57,6 +57,11 @@ DEFAULT_MAX_PASSES = default("max_passes", "check")
 #: A few seconds, not a share of the budget: the budget is the promise, whatever its size.
 BUDGET_MARGIN = 2.0
 
+#: A check's floor (`CheckJob.min_passes`, ``--min-passes``) renders its passes whatever their seconds, up to this
+#: many times the time budget: a renderer that hangs in them still ends (a pass of the floor then ends as one the
+#: budget ends, and the check with it).
+FLOOR_LIMIT = 10.0
+
 
 @dataclass(frozen=True)
 class CheckJob:
@@ -69,6 +74,10 @@ class CheckJob:
     out: str
     max_passes: int | None = DEFAULT_MAX_PASSES
     max_seconds: float | None = None
+    #: The fewest passes a side a time budget renders, whatever their seconds (None: none; a check whose budget
+    #: ends its first passes then ends `inconclusive`, too few to look at): a scene whose first pass builds much
+    #: (Cycles 5's volume octree) still gets a few passes.
+    min_passes: int | None = None
     alpha: float = default("alpha", "check")
     tolerance: float | None = default("tolerance", "check")
     equivalence_tile: int | None = None  # claim `equivalent` at this tile size (default: sized for the budget)
@@ -179,6 +188,7 @@ class Check:
             "plan": dataclasses.asdict(self.plan) if self.plan is not None else None,
             "budget": self.budget,
             "max_seconds": self.job.max_seconds,
+            "min_passes": self.job.min_passes,
             "reference": _side_record(self.job.reference),
             "test": _side_record(self.job.test),
             "render_seconds": self.render_seconds,
@@ -242,7 +252,8 @@ class Check:
             planned = (
                 self.job.plan(stored.max_passes, stored.early_share, state["plan"]) if stored is not None else None
             )
-            if planned != stored or state.get("max_seconds") != self.job.max_seconds or grown:
+            floor = state.get("min_passes") != self.job.min_passes and self.job.max_seconds is not None
+            if planned != stored or state.get("max_seconds") != self.job.max_seconds or grown or floor:
                 raise BatchError(
                     f"can't resume {self.job.out}: it was started with another budget, alpha or tolerance"
                     + (" (the budget of a --max-seconds check does not grow: start it with --max-passes)"
@@ -300,14 +311,15 @@ class Check:
     def _render_to(self, passes: int):
         """Both sides up to `passes` passes (at once: the sides share the machine, the chunk takes the longer),
         yielding while they render. The render seconds are the passes' own (what `--max-seconds` counts): a render
-        process's start-up, loading the scene once, is not a pass's."""
+        process's start-up, loading the scene once, is not a pass's. Passes within the floor (`min_passes`) are
+        not ended by the time budget, only by `FLOOR_LIMIT` times it."""
         before = {side.name: side.render_seconds for side in self.rendered}
         for side in self.rendered:
             side.request(passes)
         waiting = list(self.rendered)
         while waiting:
             waiting = [side for side in waiting if not side.poll()]
-            if waiting and self._past_budget(before, waiting):
+            if waiting and self._past_budget(before, waiting, passes <= self._floor()):
                 self._end_passes(before, waiting)
                 return
             if waiting:
@@ -324,10 +336,17 @@ class Check:
         rendered = sum(side.render_seconds - before[side.name] for side in self.rendered)
         return self.render_seconds + rendered + sum(side.running_seconds() for side in waiting)
 
-    def _past_budget(self, before: dict[str, float], waiting: list[Side]) -> bool:
-        """Whether the passes rendering now have run `BUDGET_MARGIN` past the time budget (never without one)."""
+    def _floor(self) -> int:
+        """The passes a side the time budget does not end (0: none)."""
+        return self.job.min_passes or 0 if self.job.max_seconds is not None else 0
+
+    def _past_budget(self, before: dict[str, float], waiting: list[Side], floor: bool = False) -> bool:
+        """Whether the passes rendering now have run `BUDGET_MARGIN` past the time budget (never without one);
+        passes of the floor (`floor`), `FLOOR_LIMIT` times past it."""
         budget = self.job.max_seconds
-        return budget is not None and self._spent(before, waiting) > budget + BUDGET_MARGIN
+        if budget is None:
+            return False
+        return self._spent(before, waiting) > (FLOOR_LIMIT * budget if floor else budget) + BUDGET_MARGIN
 
     def _end_passes(self, before: dict[str, float], waiting: list[Side]) -> None:
         """The time budget is spent: stop the passes still rendering (their sides end, the passes they saved stay
@@ -372,7 +391,7 @@ class Check:
         seconds_per_pass = sum(fastest) if fastest else self.render_seconds / max(done, 1)
         left = self.job.max_seconds - self.render_seconds
         passes = done + int(left / max(seconds_per_pass, 1e-9))
-        self.plan = self.job.plan(min(max(passes, wc.looks.FIRST_LOOK), len(self.job.test.seeds)))
+        self.plan = self.job.plan(min(max(passes, wc.looks.FIRST_LOOK, self._floor()), len(self.job.test.seeds)))
         self.budget = self.plan.max_passes
 
     def run(self) -> tuple[wc.Look, wc.TileStats, wc.TileStats]:
@@ -430,12 +449,19 @@ class Check:
                 yield from self._render_to(wc.looks.FIRST_LOOK)
             self._fix_budget()
         schedule = [n for n in wc.look_schedule(self.plan.max_passes, budget=self.budget) if n > done]
-        look = None
+        look, floor = None, self._floor()
         for index, n in enumerate(schedule):
-            out_of_time = self.ended_pass is not None or (deadline is not None and self.render_seconds >= deadline)
-            if out_of_time:
+            seen = self.looks[-1]["passes"] if self.looks else done
+            if self.ended_pass is not None:
                 break
-            yield from self._render_to(n)
+            if deadline is not None and self.render_seconds >= deadline:
+                if seen >= floor:
+                    break
+                n = floor  # the time is spent, the floor's passes are not: rendered, and looked at (the last look)
+            elif seen < floor < n:
+                yield from self._render_to(floor)  # the floor first: the budget does not end its passes
+            if self.ended_pass is None:
+                yield from self._render_to(n)
             if self.ended_pass is not None:
                 break
             ref, test = self._load()
@@ -666,6 +692,7 @@ class CheckRequest:
     command_dir: str | None = None
     max_passes: int | None = None  # None: DEFAULT_MAX_PASSES, unless max_seconds is given
     max_seconds: float | None = None
+    min_passes: int | None = None
     alpha: float = default("alpha", "check")
     tolerance: float | None = default("tolerance", "check")
     equivalence_tile: int | None = None
@@ -703,6 +730,11 @@ def check_job(request: CheckRequest, probe=None) -> CheckJob:
         if path is not None and not Path(path).is_file():
             raise BatchError(f"{option} {path}: no such file")
     max_passes = None if args.max_seconds is not None else (args.max_passes or DEFAULT_MAX_PASSES)
+    if args.min_passes is not None and args.max_seconds is None:
+        raise BatchError("--min-passes is the floor of a time budget: give --max-seconds too (without it every pass "
+                         "of --max-passes renders)")  # fmt: skip
+    if args.min_passes is not None and args.max_passes is not None and args.min_passes > args.max_passes:
+        raise BatchError(f"--min-passes {args.min_passes} is more than --max-passes {args.max_passes}")
     # A time budget renders at most --max-passes where given too (whichever ends first): its pass budget, fixed from
     # the speed of the first chunk, is at most the seeds a side has.
     count = args.max_passes or max_passes or MAX_SEEDS_FOR_SECONDS
@@ -778,6 +810,7 @@ def check_job(request: CheckRequest, probe=None) -> CheckJob:
         out=str(out),
         max_passes=max_passes,
         max_seconds=args.max_seconds,
+        min_passes=args.min_passes,
         alpha=args.alpha,
         tolerance=args.tolerance,
         equivalence_tile=args.equivalence_tile,

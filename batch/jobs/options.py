@@ -581,6 +581,28 @@ OPTIONS = {
             },
         ),
         Option(
+            "min_passes",
+            "--min-passes",
+            None,
+            "integer",
+            "the fewest passes a side a time budget renders, whatever their seconds",
+            low=2,
+            high=MAX_PASSES,
+            metavar="N",
+            uses={
+                "check": Use(
+                    help="with --max-seconds: the fewest passes a side, rendered whatever their seconds (up to 10 "
+                    "times the budget, so that a renderer that hangs still ends); default: none, and a check whose "
+                    "budget ends before 2 passes a side ends inconclusive"
+                ),
+                "audit": Use(
+                    8,
+                    "the fewest passes a side of each check of a cell, rendered whatever their seconds (default "
+                    "{default}): a scene whose first pass builds much still gets a few passes",
+                ),
+            },
+        ),
+        Option(
             "tolerance",
             "--tolerance",
             "tolerance",

@@ -480,6 +480,7 @@ def check_record(
         "side_seconds": durations.get("sides"),
         "max_passes": max_passes,
         "max_seconds": job.max_seconds,
+        "min_passes": job.min_passes,
         "tolerance": job.tolerance,
         "paired": job.paired,
         "seed_offset": job.seed_offset,

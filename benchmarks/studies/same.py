@@ -282,7 +282,7 @@ def chart(rows: list[dict], out: Path) -> str:
         start += share
     left.set_yticks(y, scenes)
     left.set_xlabel("share of unbiased runs")
-    left.legend(fontsize=7, loc="lower right")
+    left.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=3)
     left.set_title("check's verdict on A/A pairs, 128x128, default budget")
     right.barh(y, [np.median([r["passes"] for r in runs if r["scene"] == s]) for s in scenes], color="grey")
     right.set_xlabel("median passes a side to the verdict")

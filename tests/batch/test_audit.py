@@ -12,7 +12,9 @@ from batch.cli.commands import main
 from batch.decide import audit, audit_run
 from batch.decide.audit import AA, AuditSpec, Cell, Change, merged, plan_audit, scenes_of
 from batch.decide.audit_run import CellResult, cell_job, check_command, exit_code, status_of
-from batch.errors import BatchError, Exit
+from batch.decide.matrix import Build
+from batch.errors import BatchError, Exit, Undecided
+from batch.jobs import releases
 from batch.jobs.job import BUILTIN_SCENES
 
 SHIPPED = audit.load_changes(audit.BUILTIN_CHANGES)
@@ -191,9 +193,17 @@ def test_the_command_that_reproduces_a_confirmation(tmp_path):
     plan = plan_audit(spec(max_passes=40), {})
     cell = Cell(by_name("blue_noise"), plan.spec.scenes[1])
     line = check_command(plan, cell, "confirm", tmp_path / "again")
-    assert line.startswith("welch-bias check --scene glossy --spp 2 --tile 16 --sampling-pattern TABULATED_SOBOL "
-                           "--test-sampling-pattern BLUE_NOISE --alpha 0.000294118 --tolerance 1% --max-passes 40 "
-                           "--max-seconds 20 --seed-offset 40 --pixel-variance off --lobes diffuse,")  # fmt: skip
+    assert line.startswith(
+        "welch-bias check --scene glossy --spp 2 --tile 16 --sampling-pattern TABULATED_SOBOL --test-sampling-pattern "
+        "BLUE_NOISE --alpha 0.000294118 --tolerance 1% --max-passes 40 --max-seconds 20 --min-passes 8 --seed-offset "
+        "40 --pixel-variance off --lobes diffuse,"
+    )
+    # a release's bpy by the command that prints its Python, not by this machine's path
+    python = str(releases.python_of(releases.cache_folder() / "5.2.3"))
+    released = plan_audit(spec(max_passes=40, build=Build("5.2.3", python=python)), {})
+    line = check_command(released, cell, "first", tmp_path / "again")
+    assert ' --test-sampling-pattern BLUE_NOISE --python "$(welch-bias bpy 5.2.3)" --alpha ' in line
+    assert python not in line
 
 
 def record(verdict: str, **extra) -> dict:
@@ -207,6 +217,7 @@ def test_a_cell_is_biased_only_where_its_confirmation_is_too():
     assert status_of(record("equivalent"), None) == "equivalent"
     assert status_of(record("inconclusive"), None) == "undecided"
     assert status_of(None, None) == "error"
+    assert "identical" not in audit_run.STATUSES
 
 
 def test_the_exit_code_of_an_audit():
@@ -254,7 +265,10 @@ def test_the_estimate_says_up_front_and_shrinks_with_decided_cells():
     half = audit.estimate(plan, {c.key for c in plan.cells[:120]})
     assert half.cells == 120 and half.expected < whole.expected
     timed = plan_audit(spec(scenes=BUILTIN_SCENES, max_seconds=0.1), {"gpu": "no GPU"})
-    assert audit.estimate(timed).at_most == pytest.approx(2 * 240 * (audit.CHECK_OVERHEAD + 0.1 * audit.WALL_SHARE))
+    floor = [2 * 8 * c.change.samples * 64 * 64 * audit.SAMPLE_SECONDS for c in timed.cells]  # the floor's passes
+    assert audit.estimate(timed).at_most == pytest.approx(
+        2 * sum(audit.CHECK_OVERHEAD + max(0.1, f) * audit.WALL_SHARE for f in floor)
+    )
 
 
 def test_an_audit_file_is_the_same_audit_as_a_suite_kind(tmp_path):
@@ -288,9 +302,9 @@ why = "a tight clamp"
         audit.load_audit_file(path)
     assert str(error.value) == (
         f"{path}: 3 problems, nothing rendered: unknown key 'lights' in [audit] (it takes name, scenes, blends, "
-        "changes, only, resolution, tile, passes, seconds, alpha, tolerance); [audit] 'passes' must be an integer in "
-        "2..1000000, got 1; [audit] unknown built-in scene 'nowhere'; choose from " + ", ".join(BUILTIN_SCENES)
-        + " or all")  # fmt: skip
+        "changes, only, resolution, tile, passes, seconds, min_passes, alpha, tolerance); [audit] 'passes' must be an "
+        "integer in 2..1000000, got 1; [audit] unknown built-in scene 'nowhere'; choose from "
+        + ", ".join(BUILTIN_SCENES) + " or all")  # fmt: skip
 
 
 def test_the_command_line_refuses_in_one_line(tmp_path, capsys):
@@ -321,3 +335,130 @@ def test_a_resumed_audit_must_be_the_same_audit(tmp_path):
         audit_run.Audit(other, tmp_path, {}, resume=True).load()
     state = json.loads((tmp_path / "audit.json").read_text())
     assert state["format"] == "welch-bias-audit" and list(state["cells"]) == ["default/corner"]
+
+
+def test_identical_passes_fewer_than_rule_out_a_rare_change_are_undecided():
+    """As `check` says (reason `identical_too_few`): identical passes say the change left them as they were only
+    from `welch_core.identical_passes(alpha / cells)` passes on (96 at 0.01 / 240); fewer are `undecided`."""
+    plan = plan_audit(spec(scenes=("corner",)), {})
+    cell = Cell(by_name("persistent_data"), plan.spec.scenes[0])
+    level = 0.01 / 240
+    few = record("inconclusive", identical=True, alpha=level, passes=2)
+    assert status_of(few, None) == "undecided"
+    assert audit_run.cell_sentence(cell, "undecided", few, None) == (
+        "not decided: every pass identical on both sides so far (2 passes a side; 96 would rule out a change that "
+        "alters one pass in ten)"
+    )
+    enough = record("equivalent", identical=True, alpha=level, passes=110, identical_needed=96)
+    assert audit_run.cell_sentence(cell, "equivalent", enough, None) == (
+        "no difference: every pass identical on both sides (110 passes a side; 96 rule out a change that alters one "
+        "pass in ten)"
+    )
+    # an audit recorded before this rule: its `identical` cell is said again as `undecided`
+    said = "every pass identical on both sides (12 passes a side): the change left them as they were"
+    old = {"status": "identical", "message": said, "first": record("inconclusive", identical=True, alpha=level)}
+    again = CellResult.from_json(cell, old)
+    assert again.status == "undecided"
+    assert again.message == (
+        "not decided: every pass identical on both sides so far (12 passes a side; 96 would rule out a change that "
+        "alters one pass in ten)"
+    )
+
+
+TOO_FEW = ("the time budget (20 s) ended the passes of both sides still rendering at 22 s of render seconds: too few "
+           "passes to look at (1 of the reference side, 1 of the test side; a look needs 2 a side)")  # fmt: skip
+
+
+def test_a_cell_whose_budget_ended_its_first_passes_is_undecided_not_an_error(tmp_path, monkeypatch):
+    plan = plan_audit(spec(changes=(by_name("clamp_indirect"),), scenes=("volume_noise",)), {})
+    runner = audit_run.Audit(plan, tmp_path, {}, say=lambda _line: None)
+
+    def check(self, cell, role, where):
+        raise Undecided(TOO_FEW)
+
+    monkeypatch.setattr(audit_run.Audit, "_check", check)
+    aa, clamp = (runner.result(cell) for cell in plan.cells)
+    assert (aa.status, aa.message) == ("undecided", f"not decided, too few passes within the budget: {TOO_FEW}")
+    assert exit_code(plan, [aa, clamp]) == Exit.INCONCLUSIVE  # not 2: the tool did not fail (3: no control found)
+    summary = audit_run.write_outputs(plan, [aa, clamp], tmp_path)
+    assert summary["counts"]["undecided"] == 2 and summary["counts"]["error"] == 0
+    assert "too few passes within the budget" in (tmp_path / "index.html").read_text()
+
+
+def test_the_budget_is_equal_per_cell_with_a_floor_of_passes(tmp_path):
+    plan = plan_audit(spec(scenes=("corner",)), {})
+    assert plan.spec.floor == 8 and cell_job(plan, plan.cells[0], "first", tmp_path / "a").min_passes == 8
+    assert audit.budget_text(plan.spec) == (
+        "at most 128 passes a side and 20 s of rendering a cell (at least 8 passes a side whatever their seconds), "
+        "64x64 (the built-in scenes' own size), 16-px tiles, tolerance ±1 %"
+    )
+    assert audit.equal_budget_text(plan.spec) == (
+        "every cell's checks have the same budget: at most 128 passes a side and 20 render seconds (both sides "
+        "together), whichever ends first, and at least 8 passes a side whatever their seconds (up to 10 times the "
+        "budget): equal in render seconds for every cell whose first 8 passes fit in them, equal in passes for a "
+        "cell whose passes are slower (a scene that builds much before its first sample); a cell's samples per "
+        "pass are its change's"
+    )
+    untimed = plan_audit(spec(scenes=("corner",), max_seconds=None), {})
+    assert untimed.spec.floor is None
+    assert cell_job(untimed, untimed.cells[0], "first", tmp_path / "b").min_passes is None
+    assert plan_audit(spec(scenes=("corner",), max_passes=4), {}).spec.floor == 4  # never above the budget
+
+
+def test_a_resumed_audit_runs_again_what_the_floor_or_an_error_cut_short(tmp_path):
+    """An audit recorded before the floor (its spec without it): the cells whose checks the time budget cut below
+    8 passes a side and those that could not run are run again; every other cell is reused, said as now."""
+    plan = plan_audit(spec(changes=(by_name("persistent_data"), by_name("tiling")), scenes=("volume_noise",)), {})
+    runner = audit_run.Audit(plan, tmp_path, {}, say=lambda _line: None)
+    aa, persistent, tiling = plan.cells
+    level = 0.01 / 3
+    runner.records = {
+        aa.key: CellResult(aa, "error", f"error: {TOO_FEW}").to_json(),
+        persistent.key: CellResult(persistent, "identical", "x", first=record("inconclusive", identical=True,
+                                                                              alpha=level, passes=2)).to_json(),
+        tiling.key: CellResult(tiling, "identical", "x", first=record("inconclusive", identical=True, alpha=level,
+                                                                      passes=95)).to_json(),
+    }  # fmt: skip
+    runner.save()
+    state = json.loads((tmp_path / "audit.json").read_text())
+    del state["spec"]["min_passes"]
+    (tmp_path / "audit.json").write_text(json.dumps(state))
+    (tmp_path / "cells" / "default" / "volume_noise" / "first").mkdir(parents=True)
+    said = []
+    again = audit_run.Audit(plan, tmp_path, {}, resume=True, say=said.append)
+    again.load()
+    assert again.again == [aa.key, persistent.key] and list(again.records) == [tiling.key]
+    reused = again.result(tiling)
+    assert reused.reused and reused.status == "undecided"
+    assert reused.message.startswith("not decided: every pass identical on both sides so far (95 passes a side; ")
+
+
+def test_a_difference_no_larger_than_float_rounding_is_said_so():
+    """Cycles 4.5.4 renders the built-in scenes with rounding-level differences after a BVH, thread or persistent
+    data change (and between two renders of the same settings); paired passes make them significant. Such a
+    confirmed cell says its size and is no finding, and a control confirmed only so is one its scene does not
+    exercise."""
+    plan = plan_audit(spec(changes=(by_name("compact_bvh"), by_name("clamp_indirect")), scenes=("corner",)), {})
+    _aa, bvh, clamp = plan.cells
+    tiny = {"estimate": 1.1e-8, "low": 2e-10, "high": 2.2e-8}
+    first, confirm = record("biased", whole_image=tiny, largest=tiny), record("biased", most_significant=tiny)
+    assert audit_run.rounding_only(first, confirm) and not audit_run.rounding_only(record("biased", largest={
+        "estimate": 0.004, "low": 0.001, "high": 0.007}))  # fmt: skip
+    said = audit_run.cell_sentence(bvh, "biased", first, confirm)
+    assert said.startswith("biased at the scale of float rounding: whole image —; the largest difference estimated in "
+                           "any tile is 1.1e-08 relative (below 1e-06, the size of float rounding): the passes differ "
+                           "in their rounding, not in their light (confirmed on fresh seeds: 12 passes")  # fmt: skip
+    cells = [CellResult(c, "biased", "x", first=first, confirm=confirm) for c in (bvh, clamp)]
+    assert cells[0].rounding and not cells[0].finding and not cells[1].found
+    assert audit_run.unfound_controls(plan, cells) == ["clamp_indirect"]
+    summary = audit_run.summary_of(plan, [CellResult(plan.cells[0], "equivalent", "x"), *cells])
+    assert summary["rounding"] == ["compact_bvh/corner", "clamp_indirect/corner"] and summary["findings"] == []
+    assert summary["exit_code"] == Exit.INCONCLUSIVE  # not 1; 3: the control was found nowhere beyond rounding
+    from batch.present.audit_page import headline
+
+    assert headline(summary) == "a control was found in no scene: the audit can't vouch for its power"
+    summary["exit_code"] = Exit.OK
+    assert (
+        headline(summary) == "no noise-only setting is confirmed biased beyond float rounding (2 at the scale of "
+        "float rounding)"
+    )

@@ -67,8 +67,8 @@ def test_a_control_is_found_and_confirmed_and_the_default_against_itself_is_clea
     lines = done.stdout.splitlines()
     assert lines[0] == "audit: asking current which of the 2 changes it can render"
     assert (
-        "6 cells (0 not applicable), at most 24 passes a side and 20 s of rendering a cell, 32x32, 8-px tiles"
-        in lines[1]
+        "6 cells (0 not applicable), at most 24 passes a side and 20 s of rendering a cell (at least 8 passes a side "
+        "whatever their seconds), 32x32, 8-px tiles" in lines[1]
     )
     assert "alpha / 6 = 0.00167" in lines[2] and lines[3].startswith("audit: 6 cells to run: about ")
     assert [line.split(":")[1].strip() for line in lines[4:10]] == [
@@ -92,6 +92,8 @@ def test_a_control_is_found_and_confirmed_and_the_default_against_itself_is_clea
     for scene in ("corner", "corner_mesh_light"):
         assert cells[("default", scene)]["status"] != "biased"
     assert summary["findings"] == [] and summary["unfound_controls"] == [] and summary["exit_code"] == 0
+    found = len(summary["controls_found"]["tight_clamp"])
+    assert f"{found} control{'s' if found > 1 else ''} found; findings: none" in done.stdout  # no finding in "biased"
     assert summary["cells_k"] == 6 and summary["level"] == pytest.approx(0.01 / 6)
     suite = ET.parse(out / "junit.xml").getroot().find("testsuite")
     assert (suite.get("tests"), suite.get("failures"), suite.get("errors")) == ("6", "0", "0")

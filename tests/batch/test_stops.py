@@ -9,6 +9,7 @@ from __future__ import annotations
 import functools
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -28,10 +29,12 @@ from batch.jobs import protocol
 ROOT = Path(__file__).resolve().parents[2]
 
 #: One pass: the image PREFIX(SEED % 8).exr; from the pass whose index (SEED % 1000: a check's test side starts at
-#: seed 1000000) is in ./hang-from on, it writes its process id into ./hung-INDEX-PID and hangs.
+#: seed 1000000) is in ./hang-from on, it writes its process id into ./hung-INDEX-PID and hangs; with ./slow, each
+#: pass first sleeps its seconds.
 PASS_SCRIPT = """\
 i=$(( $2 % 1000 ))
 if [ -e hang-from ] && [ "$i" -ge "$(cat hang-from)" ]; then echo $$ > "hung-$i-$$"; exec sleep 1000; fi
+if [ -e slow ]; then sleep "$(cat slow)"; fi
 cp "$1$(( $2 % 8 )).exr" "$3"
 """
 
@@ -131,6 +134,38 @@ def test_a_check_whose_renderer_hangs_in_its_first_pass_ends_at_its_time_budget(
 
 
 @pytest.mark.slow
+def test_a_floor_of_passes_renders_them_whatever_their_seconds(renderer):
+    """``--min-passes``: a pass of 1 s on each side, a budget of 1 s. Without a floor the check ends at its first
+    look (2 passes a side); with a floor of 3 both sides render 3 passes and the check ends on them. A renderer that
+    hangs in the floor's passes is still stopped, at 10 times the budget."""
+    hang_from(renderer, None)
+    (renderer / "slow").write_text("1")
+    done, _wall = tool([*CHECK, "--max-seconds", 1, "--min-passes", 3, "--out", renderer / "floor"], renderer,
+                       expect=Exit.INCONCLUSIVE)  # fmt: skip
+    report = json.loads((renderer / "floor" / "report.json").read_text())
+    assert report["n_ref"] == report["n_test"] == 3 and report["check"]["ended_pass"] is None
+    assert report["check"]["min_passes"] == 3 and report["check"]["looks"][-1]["seconds"] > 1 + BUDGET_MARGIN + 2
+    assert done.stdout.startswith("verdict: inconclusive: ")
+
+    (renderer / "slow").unlink()
+    hang_from(renderer, 0)
+    done, wall = tool([*CHECK, "--max-seconds", 0.5, "--min-passes", 3, "--out", renderer / "hung"], renderer,
+                      expect=Exit.INCONCLUSIVE)  # fmt: skip
+    assert wall < 10 * 0.5 + BUDGET_MARGIN + ALLOWANCE, wall
+    assert done.stdout.strip().endswith("too few passes to look at (0 of the reference side, 0 of the test side; a "
+                                        "look needs 2 a side)")  # fmt: skip
+    assert not running(renderer)
+
+
+def test_a_floor_of_passes_needs_a_time_budget(renderer, capsys):
+    assert cli.main([*CHECK, "--min-passes", "3", "--out", str(renderer / "c")]) == Exit.USAGE
+    assert "--min-passes is the floor of a time budget: give --max-seconds too" in capsys.readouterr().err
+    args = [*CHECK, "--min-passes", "30", "--max-passes", "20", "--max-seconds", "1", "--out", str(renderer / "c")]
+    assert cli.main(args) == Exit.USAGE
+    assert "--min-passes 30 is more than --max-passes 20" in capsys.readouterr().err
+
+
+@pytest.mark.slow
 def test_a_check_whose_renderer_hangs_after_some_passes_ends_with_the_verdict_on_them(renderer):
     hang_from(renderer, 3)  # passes 0-2 of each side render, the fourth hangs
     out = renderer / "c"
@@ -212,6 +247,8 @@ def interrupt(args, folder: Path, moment) -> subprocess.CompletedProcess:
 
 #: Moments of the start-up (seconds after the tool took over its signals) and after a render started.
 MOMENTS = [0.05, 0.2, 0.5, 1.0, "render"]
+#: The suite's line as each case starts: on stderr where --json-progress has stdout.
+SUITE_CASE_LINE = re.compile(r"suite run: \d+/\d+ \S+ on \S+$")
 
 
 def command_line(command: str, folder: Path) -> tuple[list, str, str | None]:
@@ -228,7 +265,7 @@ def command_line(command: str, folder: Path) -> tuple[list, str, str | None]:
         hang_from(folder, None)
         tool(["suite", "bless", "welch_hang.toml", "--refs", "refs"], folder, expect=Exit.OK)
         hang_from(folder, 9)
-        return ["suite", "run", "welch_hang.toml", "--refs", "refs", "--out", "s"], "s", "hung-9-*"
+        return ["suite", "run", "welch_hang.toml", "--refs", "refs", "--json-progress", "--out", "s"], "s", "hung-9-*"
     if command == "matrix":  # scipy imports late here (the hostile round's traceback); the builds' renders hang
         for version in ("4.5.4", "5.0.1"):
             (folder / f"blender{version}").write_text(FAKE_BLENDER)
@@ -248,7 +285,7 @@ def command_line(command: str, folder: Path) -> tuple[list, str, str | None]:
 def test_ctrl_c_is_exit_130_in_one_line_wherever_it_lands(renderer, command):
     """SIGINT at several moments of each command's start (imports, scipy's among them; the render processes'
     start) and once a render hangs: exit 130, the one line on stderr (the commands' progress goes to stdout or
-    nowhere), and no render left running."""
+    nowhere; the suite's line per case stays), and no render left running."""
     args, output, mark = command_line(command, renderer)
     for moment in MOMENTS:
         if moment == "render" and mark is None:
@@ -258,7 +295,8 @@ def test_ctrl_c_is_exit_130_in_one_line_wherever_it_lands(renderer, command):
         written = renderer / output  # (its lock is released however the run ends)
         shutil.rmtree(written) if written.is_dir() else written.unlink(missing_ok=True)
         done = interrupt(args, renderer, mark if moment == "render" else moment)
-        assert (done.returncode, done.stderr) == (Exit.INTERRUPTED, INTERRUPTED_LINE + "\n"), (moment, done.stderr)
+        said = [line for line in done.stderr.splitlines() if not SUITE_CASE_LINE.match(line)]
+        assert (done.returncode, said) == (Exit.INTERRUPTED, [INTERRUPTED_LINE]), (moment, done.stderr)
         assert not running(renderer), moment
     if command == "render":  # the pass before the hang is kept
         assert wc.load_stats(renderer / "r.npz").seeds == [0]
