@@ -2,7 +2,7 @@
 
     python -m benchmarks.studies.production                      # 1920x1080, 16 spp a pass, 4 passes a side (~6 min)
     python -m benchmarks.studies.production --resolution 320 180 --spp 1 --passes 4    # a quick try
-    python -m benchmarks.studies.production --paired --pixel-variance on  # paired, the pixel test on (~6 min)
+    python -m benchmarks.studies.production --paired --pixel-variance on --set cycles.blur_glossy=1  # (~6 min)
 
 Runs ``python -m batch check`` (unpaired A/A, or paired with ``--paired``: both sides the same seeds; ``--tolerance
 off``, so it renders its whole budget and makes every look) and, as the baseline in the same run, the same passes
@@ -111,10 +111,11 @@ def in_process(out: Path, resolution: tuple[int, int], looks: int) -> dict:
 
 
 def check(scene: str, resolution: tuple[int, int], spp: int, passes: int, out: Path, paired: bool = False,
-          pixel_variance: str = "auto") -> dict:  # fmt: skip
+          pixel_variance: str = "auto", overrides: tuple[str, ...] = ()) -> dict:  # fmt: skip
     argv = [sys.executable, "-m", "batch", "check", "--scene", scene, "--resolution", *map(str, resolution),
             "--spp", str(spp), "--max-passes", str(passes), "--tolerance", "off", "--pixel-variance", pixel_variance,
             "--out", str(out), "--json-progress", *([] if paired else ["--unpaired"])]  # fmt: skip
+    argv += [f"--set={override}" for override in overrides]  # the test side's (a paired check needs one)
     start = time.perf_counter()
     proc = subprocess.Popen(argv, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     last_look = start
@@ -142,6 +143,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--passes", type=int, default=4, help="passes a side (default 4)")
     parser.add_argument("--paired", action="store_true", help="a paired check (the same seeds a side)")
     parser.add_argument("--pixel-variance", default="auto", choices=("auto", "on", "off"), help="check's (auto)")
+    parser.add_argument("--set", action="append", default=[], metavar="RNA.PATH=VALUE",
+                        help="the test side's override, as check's; repeatable (paired checks need one)")  # fmt: skip
     args = parser.parse_args(argv)
     resolution = tuple(args.resolution)
     design = "paired" if args.paired else "unpaired"
@@ -149,7 +152,7 @@ def main(argv: list[str] | None = None) -> int:
           f"{design}, --pixel-variance {args.pixel_variance}", flush=True)  # fmt: skip
     with tempfile.TemporaryDirectory() as folder:
         measured = check(args.scene, resolution, args.spp, args.passes, Path(folder) / "check", args.paired,
-                         args.pixel_variance)  # fmt: skip
+                         args.pixel_variance, tuple(args.set))  # fmt: skip
         parts = in_process(Path(folder) / "check", resolution, measured["looks"])
     print(f"bare renders of the same {measured['passes']} passes a side", flush=True)
     found = bare(args.scene, resolution, args.spp, measured["passes"], args.paired)
