@@ -130,6 +130,7 @@ def check(scene: str, resolution: tuple[int, int], spp: int, passes: int, out: P
     state = json.loads((out / "check.json").read_text())
     children = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024  # MiB (Linux: KiB)
     return {"wall_s": wall, "looks": len(state["looks"]), "passes": state["looks"][-1]["passes"],
+            "verdict": state["looks"][-1].get("verdict"),
             "report_s": wall - (last_look - start), "largest_process_mib": children}  # fmt: skip
 
 
@@ -161,7 +162,8 @@ def main(argv: list[str] | None = None) -> int:
     own = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"{args.scene} at {resolution[0]}x{resolution[1]}, {args.spp} spp a pass, {measured['passes']} passes a "
           f"side, {measured['looks']} look{'s' if measured['looks'] != 1 else ''}")  # fmt: skip
-    print(f"  check wall {wall:.1f} s; bare rendering of the same passes {rendering:.1f} s")
+    print(f"  check wall {wall:.1f} s (last look: {measured['verdict']}); bare rendering of the same passes "
+          f"{rendering:.1f} s")  # fmt: skip
     print(f"  everything else {other:.1f} s = {100 * other / wall:.1f} % of the wall time")
     items = {"start-up of a render process": found["startup_s"], "EXR write and read of a side's passes":
              found["exr_s"], "accumulation of a side's passes": parts["accumulate_s"] * measured["passes"],
