@@ -57,6 +57,7 @@ _EXPORTS = {
     "component_sum_error": "layers",
     "read_exr": "exr",
     "read_exr_channels": "exr",
+    "read_exr_colour": "exr",
     "write_exr": "exr",
     "load_layers": "formats",
     "load_preview": "formats",

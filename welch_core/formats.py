@@ -11,14 +11,21 @@ meta           str (JSON)                      height, width, tile, channels, th
                                                seeds of passes with non-finite tile sums (``--on-nan keep``)
 seeds          int64 (n,)                      seed of each pass
 sums           float64 (n, ty, tx, c)          each pass's tile sums (the Welch samples)
-pixel_sum      float32 (h, w, c), optional     per-pixel sum over the passes, top row first (for display)
-preview_sum    float32 (h/f, w/f, c), optional pixel_sum in block means of f x f pixels, the smallest f that
-                                               brings the longer side to `PREVIEW_SIDE` or less; stored with
-                                               pixel_sum where the image is larger (the report reads it alone)
-pixel_mean     float64 (h, w, c), optional     each pixel's mean over the passes, and its M2 (the sum of
+pixel_sum      float32 (h, w, c), optional     per-pixel sum over the passes, top row first (for display);
+                                               not stored beside pixel_mean, which is the sum over n
+preview_sum    float32 (h/f, w/f, c), optional the pixel sum in block means of f x f pixels, the smallest f that
+                                               brings the longer side to `PREVIEW_SIDE` or less; stored where
+                                               the image is larger (the report reads it alone)
+pixel_mean     float32 (h, w, c), optional     each pixel's mean over the passes, and its M2 (the sum of
 pixel_m2       float64 (h, w, c), optional     squared deviations): the pixel-variance test (`pixels`);
                                                checked against the sums (`pixels.moment_conflict`)
 =============  ==============================  ===========================================================
+
+The pixel moments are kept in float64 while passes are added (Welford's update of a bright pixel needs it) and
+stored as their precision needs: a pixel's mean in float32, as precise as the float32 passes it averages (a
+relative 6e-8, far inside the rounding (5) of `pixels.moment_conflict` allows, and below any pass-to-pass spread
+a test could use); M2 in float64, exactly as accumulated, so that moments read back and merged are those of the
+run. Files of earlier versions of this tool stored the mean in float64 and the pixel sum beside it; both are read.
 
 Version 1 files (which also stored a mean and M2, and a mean image instead of the pixel sum) are still read;
 their stored moments must agree with their sums. A run whose tile does not divide the image has partial tiles at
@@ -27,7 +34,8 @@ an earlier version would take their grid for one without those tiles. Files of e
 tiles (``edges="dropped"``: the strip no whole tile covers is untested).
 
 A reader of an earlier version ignores the pixel moments (they add nothing it needs), so files with them keep
-their version. Loading reads only these keys, checks every header (dtype, shape, size against the metadata and
+their version; such a reader finds no pixel sum in them either, and shows the preview where there is one, else
+no picture. Loading reads only these keys, checks every header (dtype, shape, size against the metadata and
 against the bytes in the file) before allocating, and checks the content against itself; any failure is a
 `StatsFileError` with one line that names the file.
 """
@@ -47,7 +55,7 @@ import numpy as np
 
 from .colormap import shrink
 from .errors import StatsFileError, WelchInputError
-from .pixels import PixelMoments, moment_conflict
+from .pixels import PixelMoments, moment_conflict, summed_means
 from .tiles import MAX_IMAGE_SIDE, RunInfo, TileStats
 
 __all__ = [
@@ -58,6 +66,9 @@ __all__ = [
     "load_layers",
     "load_stats",
     "save_stats",
+    "stats_arrays",
+    "with_preview",
+    "write_arrays",
 ]
 
 FORMAT_NAME = "welch-bias-stats"
@@ -130,6 +141,14 @@ def save_stats(path: str | os.PathLike, stats: TileStats, layers: dict[str, Tile
 
     Raises WelchInputError with one line (naming the file and the reason) when the file can't be written.
     """
+    write_arrays(path, with_preview(stats_arrays(stats, layers)))
+
+
+def stats_arrays(stats: TileStats, layers: dict[str, TileStats] | None = None) -> dict[str, np.ndarray]:
+    """The arrays of the statistics file of `stats` (and `layers`) but the preview (`with_preview` adds it), for
+    `write_arrays`: what the run changes in place as passes are added (its pixel moments and sums) is copied, so
+    the file can be written while passes go on (a checkpoint written by another thread); the rest is the run's
+    own, which it never changes. At 1920x1080 with pixel moments: about 15 ms (the moments' copies)."""
     layers = layers or {}
     for name, layer in layers.items():
         if not isinstance(name, str) or not name or len(name) > 200:
@@ -159,16 +178,31 @@ def save_stats(path: str | os.PathLike, stats: TileStats, layers: dict[str, Tile
         "seeds": np.array(stats.seeds, dtype=np.int64),
         "sums": sums,
     }
-    if stats.pixel_sum is not None:
-        arrays["pixel_sum"] = stats.pixel_sum
-        if max(stats.height, stats.width) > PREVIEW_SIDE:
-            arrays["preview_sum"] = shrink(stats.pixel_sum, PREVIEW_SIDE)
-    if stats.pixels is not None:
-        arrays["pixel_mean"], arrays["pixel_m2"] = stats.pixels.mean, stats.pixels.m2
+    if stats.pixels is not None:  # the mean in float32 (a copy), M2 as it is accumulated (copied: it changes)
+        arrays["pixel_mean"], arrays["pixel_m2"] = stats.pixels.mean.astype(np.float32), stats.pixels.m2.copy()
+    elif stats.pixel_sum is not None:
+        arrays["pixel_sum"] = stats.pixel_sum.copy()
     for index, layer in enumerate(layers.values()):
         arrays[f"layer{index}_sums"] = layer.sums
         if layer.pixel_sum is not None:
-            arrays[f"layer{index}_pixel_sum"] = layer.pixel_sum
+            arrays[f"layer{index}_pixel_sum"] = layer.pixel_sum.copy()
+    return arrays
+
+
+def with_preview(arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """`arrays` (`stats_arrays`) with the preview of their pixel sum (or of n x their pixels' means) where the
+    image is larger than `PREVIEW_SIDE`: what the report reads instead of the whole image."""
+    pixel_sum = arrays.get("pixel_sum")
+    if pixel_sum is None and "pixel_mean" in arrays:
+        pixel_sum = summed_means(arrays["pixel_mean"], len(arrays["seeds"]))
+    if pixel_sum is None or max(pixel_sum.shape[:2]) <= PREVIEW_SIDE:
+        return arrays
+    return arrays | {"preview_sum": shrink(pixel_sum, PREVIEW_SIDE)}
+
+
+def write_arrays(path: str | os.PathLike, arrays: dict[str, np.ndarray]) -> None:
+    """Write a statistics file's `arrays` (`stats_arrays`) to `path` atomically, checked to read back; raises
+    WelchInputError with one line (naming the file and the reason) when the file can't be written."""
 
     def write(f) -> None:
         # zipfile directly instead of np.savez: the archive is closed on every path, so a failed write raises
@@ -191,11 +225,12 @@ def save_stats(path: str | os.PathLike, stats: TileStats, layers: dict[str, Tile
         raise WelchInputError(f"can't write statistics file {os.fspath(path)!r}: {reason}") from None
 
 
-def load_stats(path: str | os.PathLike, pixels: bool = True) -> TileStats:
+def load_stats(path: str | os.PathLike, pixels: bool = True, moments: bool = True) -> TileStats:
     """Read a statistics file; anything missing, truncated, foreign, inconsistent or of another version raises
     StatsFileError with one line. Without `pixels` the pixel sums are not read (a 4K run's are 100 MB): enough
-    for any test, and `load_preview` gives a picture."""
-    return _read(path, lambda reader: reader.stats(pixels))
+    for any test, and `load_preview` gives a picture; without `moments` neither are the pixel moments (a
+    comparison without the pixel-variance test)."""
+    return _read(path, lambda reader: reader.stats(pixels, moments))
 
 
 def load_layers(path: str | os.PathLike, pixels: bool = True) -> dict[str, TileStats]:
@@ -332,7 +367,7 @@ class _Reader:
         return version
 
     def layers(self, pixels: bool) -> dict[str, TileStats]:
-        image = self.stats(pixels=False)
+        image = self.stats(pixels=False, moments=False)  # the image's grid and passes, which its layers share
         names = self.meta().get("layers", [])
         if (
             not isinstance(names, list)
@@ -355,16 +390,19 @@ class _Reader:
         return out
 
     def preview(self) -> np.ndarray | None:
-        if "preview_sum" not in self.members:
+        if "preview_sum" not in self.members and ("pixel_sum" in self.members or "pixel_mean" not in self.members):
             run = self.stats(pixels=True)
             return None if run.pixel_sum is None else shrink(run.pixel_sum, PREVIEW_SIDE)
         self.version()
         meta = self.meta()
         height, width, channels = (meta[k] for k in ("height", "width", "channels"))
+        if "preview_sum" not in self.members:  # a small image's pixel sum, from its pixels' means alone
+            n = len(self.array("seeds", "iu", None))
+            return summed_means(self.array("pixel_mean", "f", (height, width, channels)), n)
         factor = -(-max(height, width) // PREVIEW_SIDE)
         return self.array("preview_sum", "f", (height // factor, width // factor, channels))
 
-    def stats(self, pixels: bool = True) -> TileStats:
+    def stats(self, pixels: bool = True, moments: bool = True) -> TileStats:
         version = self.version()
         meta = self.meta()
         height, width, tile, channels = (meta[k] for k in ("height", "width", "tile", "channels"))
@@ -392,8 +430,9 @@ class _Reader:
             self.check_version1_moments(sums, grid)
         elif pixels:
             pixel_sum = self.array("pixel_sum", "f", (height, width, channels), required=False)
-        moments = self.pixel_moments(len(seeds), (height, width, channels)) if version > 1 else None
-        run = TileStats.from_sums(sums, seeds.tolist(), height, width, tile, info, pixel_sum, edges, pixels=moments)
+        kept = self.pixel_moments(len(seeds), (height, width, channels)) if moments and version > 1 else None
+        run = TileStats.from_sums(sums, seeds.tolist(), height, width, tile, info, pixel_sum, edges, pixels=kept,
+                                  mean_from_pixels=pixels)  # fmt: skip
         self.check_pixel_moments(run)
         return run
 

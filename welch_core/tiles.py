@@ -26,7 +26,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import GridMismatchError, RunMismatchError, WelchInputError, check_int
-from .pixels import PixelMoments
+from .pixels import PixelMoments, summed_means
 
 __all__ = ["EDGES", "MAX_IMAGE_SIDE", "MAX_SPP", "RunInfo", "TileStats", "grid_size", "tile_row_blocks", "tile_sums"]
 
@@ -216,7 +216,8 @@ class TileStats:
     info : RunInfo
         What produced the passes.
     keep_mean_image : bool
-        Also keep the per-pixel mean image (for display over the p-value map).
+        Also keep the per-pixel mean image (for display over the p-value map): the pixel sum, or with
+        `keep_pixel_moments` the moments' mean (no sum to update a pass).
     keep_pixel_moments : bool
         Also keep each pixel's mean and M2 over the passes (`pixels`), for the pixel-variance test.
     """
@@ -254,11 +255,14 @@ class TileStats:
         self._buffer = np.empty((0, *self.grid_shape))
         self._count = 0
         self._moments: tuple[int, np.ndarray, np.ndarray] | None = None  # (count, mean, m2), derived from sums
-        # float32 is enough for an image that is only displayed, and keeps add_pass near memory speed.
-        self._pixel_sum = np.zeros((self.height, self.width, self.channels), np.float32) if keep_mean_image else None
-        #: each pixel's moments over the passes (`welch_core.pixels`), where kept: a run of other passes (a subset,
-        #: the whole image's channel sum) has none
-        self.pixels = PixelMoments(self.height, self.width, self.channels) if keep_pixel_moments else None
+        # float32 is enough for an image that is only displayed, and keeps add_pass near memory speed. A run that
+        # keeps pixel moments keeps no sum: its mean image is the moments' mean (`pixel_sum`), one array less to
+        # update a pass, to hold and to save.
+        summed = keep_mean_image and not keep_pixel_moments
+        self._pixel_sum = np.zeros((self.height, self.width, self.channels), np.float32) if summed else None
+        self._mean_from_pixels = keep_mean_image and keep_pixel_moments
+        self._pixels_sum: tuple | None = None  # (the moments, their n, n x their mean in float32): `pixel_sum`
+        self._pixels = PixelMoments(self.height, self.width, self.channels) if keep_pixel_moments else None
 
     @classmethod
     def from_sums(
@@ -273,6 +277,7 @@ class TileStats:
         edges: str = "partial",
         covered: tuple[int, int] | None = None,
         pixels: PixelMoments | None = None,
+        mean_from_pixels: bool = False,
     ) -> TileStats:
         """Statistics built from per-pass tile sums of shape (n, tiles_y, tiles_x, channels): the constructor for
         loaders and derived runs. A C-contiguous float64 array is used as it is (not copied): don't change it
@@ -280,7 +285,8 @@ class TileStats:
 
         `pixel_sum`, if given, is the per-pixel sum over the passes (H×W×channels), from which the mean image is
         shown. `edges` and `covered` say how the tiles meet the image's edges (see `TileStats`); `pixels` are the
-        passes' per-pixel moments (checked to be of these passes' count and image).
+        passes' per-pixel moments (checked to be of these passes' count and image); `mean_from_pixels`: without a
+        `pixel_sum`, the mean image is theirs (a statistics file that stores the moments and no sum).
         """
         sums = np.asarray(sums, dtype=np.float64)
         if sums.ndim != 4:
@@ -305,6 +311,7 @@ class TileStats:
                     f"{pixels.n} of {pixels.shape}"
                 )
             out.pixels = pixels
+            out._mean_from_pixels = mean_from_pixels and out._pixel_sum is None
         return out
 
     # -- shape of the grid ---------------------------------------------------------------------------------
@@ -366,16 +373,38 @@ class TileStats:
             return self.m2 / (self._count - 1)
 
     @property
+    def pixels(self) -> PixelMoments | None:
+        """Each pixel's moments over the passes (`welch_core.pixels`), where kept: a run of other passes (a subset,
+        the whole image's channel sum) has none."""
+        return self._pixels
+
+    @pixels.setter
+    def pixels(self, moments: PixelMoments | None) -> None:
+        if moments is None and self._mean_from_pixels and self._pixels is not None:
+            self._pixel_sum = self.pixel_sum.copy()  # the mean image outlives the moments: a sum of its own again
+            self._mean_from_pixels = False
+        self._pixels = moments
+
+    @property
     def pixel_sum(self) -> np.ndarray | None:
-        """Per-pixel sum over the passes (H×W×channels float32), if kept."""
+        """Per-pixel sum over the passes (H×W×channels float32), if kept: n x the pixels' means in a run that keeps
+        pixel moments (computed once per n; don't change it)."""
+        if self._mean_from_pixels and self._pixels is not None:
+            pixels = self._pixels
+            if self._pixels_sum is None or self._pixels_sum[0] is not pixels or self._pixels_sum[1] != pixels.n:
+                self._pixels_sum = (pixels, pixels.n, summed_means(pixels.mean, pixels.n))
+            return self._pixels_sum[2]
         if self._pixel_sum is None:
             return None
         return self._pixel_sum[..., : self.channels]
 
+    def _keeps_mean_image(self) -> bool:
+        return self._pixel_sum is not None or (self._mean_from_pixels and self._pixels is not None)
+
     @property
     def mean_image(self) -> np.ndarray | None:
         """Per-pixel mean over the passes (H×W×channels float32, top row first), if kept."""
-        if self._pixel_sum is None or self._count == 0:
+        if not self._keeps_mean_image() or self._count == 0:
             return None
         return self.pixel_sum / np.float32(self._count)
 
@@ -456,7 +485,7 @@ class TileStats:
             self.pixels.add(image)
         else:  # a kept pass with NaN or inf pixels: its pixels have no variance to speak of, the run keeps none
             self.pixels = None
-        if self._pixel_sum is not None:
+        if self._pixel_sum is not None and not self._mean_from_pixels:
             if self._count == 1 and self._pixel_sum.shape != image.shape:
                 # Sum all of the pass's channels (alpha too): a contiguous add is 5x faster than a strided one.
                 self._pixel_sum = np.zeros(image.shape, np.float32)
@@ -475,17 +504,22 @@ class TileStats:
         seeds = _check_seeds(seeds, self.seeds)
         if sums.shape != (len(seeds), *self.grid_shape):
             raise WelchInputError(f"`sums` must have shape {(len(seeds), *self.grid_shape)}, got {sums.shape}")
-        if self._pixel_sum is not None:
+        # The mean image needs the passes' pixel sum, unless it is the moments' mean and they come with theirs.
+        summed = self._keeps_mean_image() and not (self._mean_from_pixels and pixels is not None)
+        if summed:
             if pixel_sum is None:
                 raise WelchInputError("`pixel_sum` is needed: this run keeps the mean image")
             pixel_sum = np.asarray(pixel_sum, dtype=np.float32)
             if pixel_sum.shape[:2] != (self.height, self.width) or pixel_sum.shape[2] < self.channels:
                 raise WelchInputError(f"`pixel_sum` must be {self.height}x{self.width}, got {pixel_sum.shape}")
+        if self.pixels is not None and pixels is not None and pixels.n != len(seeds):
+            raise WelchInputError(f"`pixels` must be the moments of {len(seeds)} passes, got {pixels.n}")
+        if pixels is None:
+            self.pixels = None  # passes without moments: the run keeps none from now on
+        if summed:
             self._pixel_sum[..., : self.channels] += pixel_sum[..., : self.channels]
         if self.pixels is not None:
-            if pixels is not None and pixels.n != len(seeds):
-                raise WelchInputError(f"`pixels` must be the moments of {len(seeds)} passes, got {pixels.n}")
-            self.pixels = self.pixels.merged(pixels) if pixels is not None else None
+            self.pixels = self.pixels.merged(pixels)
         self._append(sums, seeds)
 
     def _append(self, sums: np.ndarray, seeds: list[int]) -> None:
@@ -509,10 +543,10 @@ class TileStats:
         """
         self.same_run(other, "merge")
         _check_seeds(other.seeds, self.seeds)
-        keep = self._pixel_sum is not None and other._pixel_sum is not None
-        pixel_sum = self.pixel_sum + other.pixel_sum if keep else None
         both = self.pixels is not None and other.pixels is not None
         pixels = self.pixels.merged(other.pixels) if both else None
+        keep = self._keeps_mean_image() and other._keeps_mean_image()
+        pixel_sum = self.pixel_sum + other.pixel_sum if keep and pixels is None else None
         return TileStats.from_sums(
             np.concatenate([self.sums, other.sums]),
             self.seeds + other.seeds,
@@ -524,6 +558,7 @@ class TileStats:
             self.edges,
             self.covered,
             pixels,
+            mean_from_pixels=keep,
         )
 
     # -- derived runs --------------------------------------------------------------------------------------

@@ -429,12 +429,15 @@ class PassRenderer:
         A scene prepared with `configure_unbiased`.
     temp_dir : str, optional
         Folder for the temporary EXR; defaults to ``/dev/shm`` where writable with room, else the system temp
-        folder. Pass files of dead processes found there are deleted.
+        folder. Pass files of dead processes found there are deleted. A paired check's side gives its pass
+        images' folder: each pass's file is then renamed there, not written again (`batch.jobs.pairs`).
 
     Attributes
     ----------
     render_seconds, io_seconds : float
         Time of the last pass spent in ``render.render()`` and in saving plus reading the EXR.
+    pass_file : str
+        The EXR of the last pass, until the next one is rendered (it may be moved away).
     """
 
     def __init__(self, scene: bpy.types.Scene, temp_dir: str | None = None, lobes: tuple[str, ...] = ()):
@@ -446,7 +449,7 @@ class PassRenderer:
         remove_stale_passes(folder)
         handle, path = tempfile.mkstemp(prefix=f"{PASS_PREFIX}{os.getpid()}-", suffix=".exr", dir=folder)
         os.close(handle)
-        self.path = path
+        self.path = self.pass_file = path
         self.render_seconds = 0.0
         self.io_seconds = 0.0
 

@@ -146,7 +146,9 @@ def render_run(job: RenderJob, progress: Progress, requests=None) -> wc.TileStat
             own = [parse_override(o).path.removeprefix("scene.") for o in job.overrides]
             if not any(path.startswith("render.threads") for path in own):
                 limit_threads(scene)  # a worker's share of the cores, unless the job sets the threads itself
-            renderer = render.PassRenderer(scene, lobes=job.lobes)
+            if job.pass_images is not None:  # each pass's EXR is renamed there: written on its file system
+                os.makedirs(job.pass_images, exist_ok=True)
+            renderer = render.PassRenderer(scene, job.pass_images, lobes=job.lobes)
         with renderer, StopRequest() as stop:
             renderer.stop = stop  # a command's pass ends at once on a stop; a Cycles pass is short
             # A new command run learns its image size from its first pass: rendering starts with it (a time
@@ -169,9 +171,11 @@ def render_run(job: RenderJob, progress: Progress, requests=None) -> wc.TileStat
                         continue
                     count = request
                     chunk, todo = todo[: max(count, 0)], todo[max(count, 0) :]
+                    before = stats.n
                     render_passes(renderer, chunk, stats, progress, job.on_nan, job.out, len(chunk) + 1, stop, layers,
                                   job.pass_images)  # fmt: skip
-                    wc.save_stats(job.out, stats, layers)
+                    if stats.n == before:  # the loop saves the passes it added: without any, the file still answers
+                        wc.save_stats(job.out, stats, layers)
                     progress.emit(protocol.Saved(out=job.out, passes=stats.n))
                     if not todo:
                         break
@@ -261,7 +265,7 @@ def _rendered(renderer, seeds, run: Run, progress: Progress, on_nan: str, stop, 
             hint = " (use --on-nan skip or keep to go on)" if "non-finite" in str(exc) else ""
             raise RunError(f"{exc}{hint}") from None
         if added and pass_images is not None:
-            save_pass_image(pass_images, seed, image)
+            save_pass_image(pass_images, seed, image, renderer.pass_file)
         if added:
             # A command's first pass may have been rendered earlier, to learn the image size: its time counts.
             seconds = time.perf_counter() - start + getattr(renderer, "replayed_seconds", 0.0)

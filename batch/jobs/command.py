@@ -4,7 +4,8 @@ A job with a `command` (``render --command``, a suite case's ``command`` key) re
 command template with the placeholders filled in:
 
 - ``{seed}``: the pass's seed (a non-negative integer; every pass has its own);
-- ``{out}``: the EXR file the pass must be written to (R, G, B, scene-linear; it is read, then deleted);
+- ``{out}``: the EXR file the pass must be written to (R, G, B, scene-linear; it is read, then deleted, or kept
+  as a paired check's pass image: `batch.jobs.pairs`);
 - ``{spp}``: the job's samples per pixel (optional);
 - ``{set}``: the job's overrides, each as one argument ``KEY=VALUE`` (optional, but a job with overrides needs
   it: an override the command never sees would make two sides that differ in name only);
@@ -17,6 +18,7 @@ its own. What the command prints goes to the run's error output only when it fai
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import shlex
@@ -115,12 +117,18 @@ class CommandRenderer:
         self._channels: list[str] | None = None  # the channel names of the first pass this process read
         self.stop = None  # a `batch.blender.run.StopRequest`: a stop ends the command's pass at once
         self._slowest = 0.0  # seconds of the slowest pass so far
+        self.pass_file: str | None = None  # the EXR of the last pass, deleted when the next one renders
 
     def __enter__(self) -> CommandRenderer:
-        self._folder = tempfile.TemporaryDirectory(prefix="welch-command-")
+        # A paired check's side keeps its passes' files as its pass images: written on their file system, a rename
+        # moves them (`batch.jobs.pairs`).
+        if self.job.pass_images is not None:
+            os.makedirs(self.job.pass_images, exist_ok=True)
+        self._folder = tempfile.TemporaryDirectory(prefix="welch-command-", dir=self.job.pass_images)
         return self
 
     def __exit__(self, *exc) -> bool:
+        self._forget()
         if self._folder is not None:
             self._folder.cleanup()
         return False
@@ -165,6 +173,7 @@ class CommandRenderer:
             return image
         self.replayed_seconds = 0.0
         assert self._folder is not None, "use the renderer as a context manager"
+        self._forget()
         out = os.path.join(self._folder.name, f"pass-{seed}.exr")
         line = argv(self.job.command, seed, out, self.job.spp, self.job.overrides)
         code, stdout, stderr = self._run(line, seed)
@@ -174,19 +183,23 @@ class CommandRenderer:
                              f"{' '.join(said.split()) or 'no output'}")  # fmt: skip
         if not os.path.exists(out):
             raise BatchError(f"--command exited 0 for seed {seed} without writing {{out}} ({out})")
-        try:
-            channels = wc.read_exr_channels(out)
-            names = sorted(channels)
-            if self._channels is None:
-                self._channels = names
-            elif names != self._channels:  # another layer written by mistake: its colour is not the image's
-                raise BatchError(
-                    f"--command wrote channels {names} for seed {seed}, its first pass {self._channels}: every pass "
-                    "must hold the same channels"
-                )
-            return wc.exr.colour_of(channels, out)
-        finally:
-            os.remove(out)
+        self.pass_file = out
+        image, names = wc.read_exr_colour(out)
+        if self._channels is None:
+            self._channels = names
+        elif names != self._channels:  # another layer written by mistake: its colour is not the image's
+            raise BatchError(
+                f"--command wrote channels {names} for seed {seed}, its first pass {self._channels}: every pass "
+                "must hold the same channels"
+            )
+        return image
+
+    def _forget(self) -> None:
+        """Delete the last pass's file, unless it was kept (moved away)."""
+        if self.pass_file is not None:
+            with contextlib.suppress(FileNotFoundError):
+                os.remove(self.pass_file)
+            self.pass_file = None
 
 
 def _end(process: subprocess.Popen) -> None:

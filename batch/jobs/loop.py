@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 from .._siblings import welch_core as wc
 from ..errors import BatchError
+from .checkpoint import Checkpoints
 from .job import RenderJob
 
 
@@ -68,27 +69,36 @@ class Run:
         for name, layer in arrival.layers.items():
             self.layers[name].add_sums(layer.sums, layer.seeds, layer.pixel_sum)
 
-    def save(self) -> None:
-        """Write the file, its passes (and its layers') in the order of the job's seeds."""
+    def save(self, checkpoints: Checkpoints | None = None) -> None:
+        """Write the file, its passes (and its layers') in the order of the job's seeds: now, or by `checkpoints`'
+        thread while the loop goes on."""
         if self.out is None or self.stats is None:
             return
         order = sorted(range(self.stats.n), key=lambda i: self.position[self.stats.seeds[i]]) if self.position else []
         if order and order != list(range(self.stats.n)):
             self.stats = _reordered(self.stats, order)
             self.layers = {name: _reordered(layer, order) for name, layer in self.layers.items()}
-        wc.save_stats(self.out, self.stats, self.layers)
+        if checkpoints is None:
+            wc.save_stats(self.out, self.stats, self.layers)
+        else:
+            checkpoints.write(self.out, wc.formats.stats_arrays(self.stats, self.layers))
 
 
 def _reordered(stats: wc.TileStats, order: list[int]) -> wc.TileStats:
+    pixel_sum = stats.pixel_sum if stats.pixels is None else None  # (with moments, their mean is the mean image)
     return wc.TileStats.from_sums(stats.sums[order], [stats.seeds[i] for i in order], stats.height, stats.width,
-                                  stats.tile, stats.info, pixel_sum=stats.pixel_sum, pixels=stats.pixels)  # fmt: skip
+                                  stats.tile, stats.info, pixel_sum=pixel_sum, pixels=stats.pixels,
+                                  mean_from_pixels=True)  # fmt: skip
 
 
 def render_loop(arrivals: Iterable[Arrival], run: Run, progress, checkpoint_every: int) -> None:
     """Add each arrival to `run`, report its passes to `progress` (a `batch.present.progress.Progress`) and save
-    every `checkpoint_every` passes and at the end, also when the loop ends on a failure or an interrupt (the
-    source raises KeyboardInterrupt on Ctrl-C or SIGTERM): nothing that arrived is lost."""
+    every `checkpoint_every` passes (by a thread of its own, `batch.jobs.checkpoint`: the passes go on meanwhile)
+    and at the end, also when the loop ends on a failure or an interrupt (the source raises KeyboardInterrupt on
+    Ctrl-C or SIGTERM): nothing that arrived is lost. The last save waits for the checkpoint being written, so the
+    file ends with every pass."""
     unsaved, last = 0, time.perf_counter()
+    checkpoints = Checkpoints()
     try:
         for arrival in arrivals:
             run.add(arrival)
@@ -102,11 +112,14 @@ def render_loop(arrivals: Iterable[Arrival], run: Run, progress, checkpoint_ever
                 progress.pass_done(seed, seconds)
             last = now
             if unsaved >= checkpoint_every:
-                run.save()
+                run.save(checkpoints)
                 unsaved = 0
     finally:
-        if unsaved:
-            run.save()
+        try:
+            checkpoints.wait()
+        finally:
+            if unsaved:
+                run.save()
 
 
 def resumed(job: RenderJob, fresh: wc.TileStats | None = None) -> tuple[wc.TileStats | None, dict]:

@@ -1,8 +1,13 @@
 """Each pixel's difference per seed for a paired check: the pixel-variance test of paired runs needs the moments of
 test - reference for every pixel over the seeds (`welch_core.pixels`), which neither side's statistics can hold,
-as each side renders in its own process. So each side also writes every pass's image into a folder of the check
+as each side renders in its own process. So each side also keeps every pass's image in a folder of the check
 (`save_pass_image`), and the check folds the two images of each seed into the moments of their difference before
 a look (`PixelPairs`) and deletes them: a few images on disk at a time, the moments in ``pairs.npz``.
+
+A pass's image is the EXR file its renderer wrote and the side read (Blender's saved pass, a command's ``{out}``),
+renamed into the folder: no second write, one more read (the check's). The renderer writes it in that folder where
+it can (`batch.blender.render.PassRenderer`), so the rename stays on one file system; otherwise it is copied once.
+The files are not fsynced: an image a crash lost is a missing one (below), as the moments are saved first.
 
 Saved before the images are deleted, so a crash in between leaves images whose seeds the moments already hold
 (deleted at the next look). A seed whose image a side lost (a check started before the images were kept, a
@@ -13,7 +18,10 @@ numpy only: `save_pass_image` runs inside Blender.
 
 from __future__ import annotations
 
+import errno
 import os
+import secrets
+import shutil
 import zipfile
 from pathlib import Path
 
@@ -25,11 +33,30 @@ from .._siblings import welch_core as wc
 FOLDER, FILE = "pairs", "pairs.npz"
 
 
-def save_pass_image(folder: str, seed: int, image: np.ndarray) -> None:
-    """Write a pass's RGB image as ``<folder>/<seed>.npy`` (float32), atomically."""
+def save_pass_image(folder: str, seed: int, image: np.ndarray, source: str | None = None) -> None:
+    """Keep a pass's image as ``<folder>/<seed>.exr``: the pass's own EXR file `source` (its colour is `image`),
+    renamed, or copied where it lies on another file system; without one, `image` written as an EXR. Never a
+    partial file under that name (a temporary one, renamed)."""
     os.makedirs(folder, exist_ok=True)
-    rgb = np.ascontiguousarray(np.asarray(image)[..., :3], dtype=np.float32)
-    wc.formats.atomic_write(os.path.join(folder, f"{seed}.npy"), lambda f: np.save(f, rgb, allow_pickle=False))
+    path = os.path.join(folder, f"{seed}.exr")
+    if source is not None:
+        try:
+            os.replace(source, path)
+            return
+        except OSError as exc:
+            if exc.errno != errno.EXDEV:
+                raise
+    tmp = os.path.join(folder, f".welch-{secrets.token_hex(6)}.tmp")
+    try:
+        if source is not None:
+            shutil.copyfile(source, tmp)
+        else:
+            with open(tmp, "wb") as f:
+                f.write(wc.exr.exr_bytes(np.asarray(image)[..., :3]))
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
 
 
 class PixelPairs:
@@ -55,8 +82,8 @@ class PixelPairs:
         Path(out, FILE).unlink(missing_ok=True)
         for side in ("reference", "test"):
             folder = Path(PixelPairs.folder(out, side))
-            for image in folder.glob("*.npy") if folder.is_dir() else ():
-                image.unlink(missing_ok=True)
+            for image in [*folder.glob("*.exr"), *folder.glob("*.npy")] if folder.is_dir() else ():
+                image.unlink(missing_ok=True)  # (.npy: the images of earlier versions of this tool)
 
     def _load(self) -> None:
         try:
@@ -82,20 +109,24 @@ class PixelPairs:
             return None
         images = {side: Path(self.folder(self.out, side)) for side in ("reference", "test")}
         new = seeds[len(self.seeds) :]
+        difference = None
         for seed in new:
-            files = [images[side] / f"{seed}.npy" for side in ("reference", "test")]
+            files = [images[side] / f"{seed}.exr" for side in ("reference", "test")]
             try:
-                ref, test = (np.load(f, allow_pickle=False) for f in files)
-            except (OSError, ValueError):
+                ref, test = (wc.read_exr(f) for f in files)
+            except wc.WelchInputError:
                 self.broken = True
                 break
             if self.moments is None:
                 self.moments = wc.PixelMoments(*ref.shape)
-            self.moments.add(test.astype(np.float64) - ref)
+            if difference is None:
+                difference = np.empty(ref.shape)
+            np.subtract(test, ref, out=difference, dtype=np.float64)
+            self.moments.add(difference)
             self.seeds.append(seed)
         if new:
             self._save()
             for seed in self.seeds:  # folded: no longer needed (also those a crash left after an earlier save)
                 for folder in images.values():
-                    (folder / f"{seed}.npy").unlink(missing_ok=True)
+                    (folder / f"{seed}.exr").unlink(missing_ok=True)
         return None if self.broken else self.moments

@@ -75,9 +75,9 @@ def present(
     return write(out_dir, assess(comparison, ref, test, **assessing), ref, test, previews, full_maps)
 
 
-def _load(ref_path: str, test_path: str, pixels: bool):
-    """Both statistics files (their pixel sums where asked for) and both files' layers."""
-    ref, test = (wc.load_stats(path, pixels=pixels) for path in (ref_path, test_path))
+def _load(ref_path: str, test_path: str, pixels: bool, moments: bool = True):
+    """Both statistics files (their pixel sums and pixel moments where asked for) and both files' layers."""
+    ref, test = (wc.load_stats(path, pixels=pixels, moments=moments) for path in (ref_path, test_path))
     return ref, test, (wc.load_layers(ref_path, pixels=False), wc.load_layers(test_path, pixels=False))
 
 
@@ -89,7 +89,7 @@ def compare_files(ref_path: str, test_path: str, out_dir: str, *, alpha: float =
     """Load two statistics files, compare them and their layers, and report into `out_dir` (the `compare`
     command). The pixel sums are read only where full-resolution maps are asked for; the page needs the stored
     previews alone."""
-    ref, test, layers = _load(ref_path, test_path, full_maps)
+    ref, test, layers = _load(ref_path, test_path, full_maps, moments=pixel_variance != "off")
     previews = None if full_maps else (wc.load_preview(ref_path), wc.load_preview(test_path))
     comparison = wc.compare(ref, test, alpha, kind, pvalue_method, tile, tolerance, equivalence_tile, pixel_variance)
     return present(out_dir, comparison, ref, test, layers=layers, previews=previews, full_maps=full_maps)

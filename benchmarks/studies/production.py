@@ -2,13 +2,15 @@
 
     python -m benchmarks.studies.production                      # 1920x1080, 16 spp a pass, 4 passes a side (~6 min)
     python -m benchmarks.studies.production --resolution 320 180 --spp 1 --passes 4    # a quick try
+    python -m benchmarks.studies.production --paired --pixel-variance on --set cycles.blur_glossy=1  # (~6 min)
 
-Runs ``python -m batch check`` (unpaired A/A, ``--tolerance off``, so it renders its whole budget and makes every
-look) and, as the baseline in the same run, the same passes rendered bare: two processes at once, as the check's
-two sides render, each calling Cycles' render operator on the same scene and settings with nothing else (no EXR,
-no statistics). Everything else is the check's wall time less the slower bare process's render time: start-up of
-the render processes, EXR write and read, accumulation, the looks, the report. Prints the split and the peak
-memory (resident set) of the largest process the check ran (itself or a render process).
+Runs ``python -m batch check`` (unpaired A/A, or paired with ``--paired``: both sides the same seeds; ``--tolerance
+off``, so it renders its whole budget and makes every look) and, as the baseline in the same run, the same passes
+rendered bare: two processes at once, as the check's two sides render, each calling Cycles' render operator on the
+same scene and settings with nothing else (no EXR, no statistics). Everything else is the check's wall time less the
+slower bare process's render time: start-up of the render processes, EXR write and read, accumulation, the looks,
+the report. Prints the split and the peak memory (resident set) of the largest process the check ran (itself or a
+render process).
 
 Everything else is then itemised from measurements of its parts in the same run: the start-up of a render process
 (launch to its first render, measured by the bare processes, which also save and read each pass's EXR as a pass
@@ -66,12 +68,13 @@ BARE = textwrap.dedent(
 )
 
 
-def bare(scene: str, resolution: tuple[int, int], spp: int, passes: int) -> dict:
-    """Two sides of `passes` passes rendered at once: the slower side's seconds of rendering alone, and the larger
-    start-up and EXR seconds (save and read of its passes) of the two."""
+def bare(scene: str, resolution: tuple[int, int], spp: int, passes: int, paired: bool = False) -> dict:
+    """Two sides of `passes` passes rendered at once (`paired`: the same seeds): the slower side's seconds of
+    rendering alone, and the larger start-up and EXR seconds (save and read of its passes) of the two."""
     argv = [sys.executable, "-c", BARE, scene, *map(str, resolution), str(spp), str(passes)]
+    firsts = (0, 0) if paired else (0, 1_000_000)
     procs = [subprocess.Popen([*argv, str(first), repr(time.time())], cwd=REPO, stdout=subprocess.PIPE,
-                              stderr=subprocess.DEVNULL, text=True) for first in (0, 1_000_000)]  # fmt: skip
+                              stderr=subprocess.DEVNULL, text=True) for first in firsts]  # fmt: skip
     sides = []
     for proc in procs:
         out, _ = proc.communicate()
@@ -89,7 +92,7 @@ def in_process(out: Path, resolution: tuple[int, int], looks: int) -> dict:
 
     width, height = resolution
     image = np.random.default_rng(0).random((height, width, 3), dtype=np.float32)
-    stats = wc.TileStats(height, width, 16)
+    stats = wc.TileStats(height, width, 16, keep_pixel_moments=True)  # as a render process keeps them
     start = time.perf_counter()
     for seed in range(3):
         stats.add_pass(image, seed)
@@ -107,10 +110,12 @@ def in_process(out: Path, resolution: tuple[int, int], looks: int) -> dict:
             "files_s": looks * (save + load)}  # fmt: skip
 
 
-def check(scene: str, resolution: tuple[int, int], spp: int, passes: int, out: Path) -> dict:
+def check(scene: str, resolution: tuple[int, int], spp: int, passes: int, out: Path, paired: bool = False,
+          pixel_variance: str = "auto", overrides: tuple[str, ...] = ()) -> dict:  # fmt: skip
     argv = [sys.executable, "-m", "batch", "check", "--scene", scene, "--resolution", *map(str, resolution),
-            "--spp", str(spp), "--max-passes", str(passes), "--unpaired", "--tolerance", "off",
-            "--out", str(out), "--json-progress"]  # fmt: skip
+            "--spp", str(spp), "--max-passes", str(passes), "--tolerance", "off", "--pixel-variance", pixel_variance,
+            "--out", str(out), "--json-progress", *([] if paired else ["--unpaired"])]  # fmt: skip
+    argv += [f"--set={override}" for override in overrides]  # the test side's (a paired check needs one)
     start = time.perf_counter()
     proc = subprocess.Popen(argv, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     last_look = start
@@ -125,6 +130,7 @@ def check(scene: str, resolution: tuple[int, int], spp: int, passes: int, out: P
     state = json.loads((out / "check.json").read_text())
     children = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024  # MiB (Linux: KiB)
     return {"wall_s": wall, "looks": len(state["looks"]), "passes": state["looks"][-1]["passes"],
+            "verdict": state["looks"][-1].get("verdict"),
             "report_s": wall - (last_look - start), "largest_process_mib": children}  # fmt: skip
 
 
@@ -136,21 +142,28 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--resolution", nargs=2, type=int, default=(1920, 1080), metavar=("W", "H"))
     parser.add_argument("--spp", type=int, default=16, help="samples per pass (default 16)")
     parser.add_argument("--passes", type=int, default=4, help="passes a side (default 4)")
+    parser.add_argument("--paired", action="store_true", help="a paired check (the same seeds a side)")
+    parser.add_argument("--pixel-variance", default="auto", choices=("auto", "on", "off"), help="check's (auto)")
+    parser.add_argument("--set", action="append", default=[], metavar="RNA.PATH=VALUE",
+                        help="the test side's override, as check's; repeatable (paired checks need one)")  # fmt: skip
     args = parser.parse_args(argv)
     resolution = tuple(args.resolution)
-    print(f"check: {args.scene} at {resolution[0]}x{resolution[1]}, {args.spp} spp, {args.passes} passes a side",
-          flush=True)  # fmt: skip
+    design = "paired" if args.paired else "unpaired"
+    print(f"check: {args.scene} at {resolution[0]}x{resolution[1]}, {args.spp} spp, {args.passes} passes a side, "
+          f"{design}, --pixel-variance {args.pixel_variance}", flush=True)  # fmt: skip
     with tempfile.TemporaryDirectory() as folder:
-        measured = check(args.scene, resolution, args.spp, args.passes, Path(folder) / "check")
+        measured = check(args.scene, resolution, args.spp, args.passes, Path(folder) / "check", args.paired,
+                         args.pixel_variance, tuple(args.set))  # fmt: skip
         parts = in_process(Path(folder) / "check", resolution, measured["looks"])
     print(f"bare renders of the same {measured['passes']} passes a side", flush=True)
-    found = bare(args.scene, resolution, args.spp, measured["passes"])
+    found = bare(args.scene, resolution, args.spp, measured["passes"], args.paired)
     rendering, wall = found["render_s"], measured["wall_s"]
     other = wall - rendering
     own = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"{args.scene} at {resolution[0]}x{resolution[1]}, {args.spp} spp a pass, {measured['passes']} passes a "
           f"side, {measured['looks']} look{'s' if measured['looks'] != 1 else ''}")  # fmt: skip
-    print(f"  check wall {wall:.1f} s; bare rendering of the same passes {rendering:.1f} s")
+    print(f"  check wall {wall:.1f} s (last look: {measured['verdict']}); bare rendering of the same passes "
+          f"{rendering:.1f} s")  # fmt: skip
     print(f"  everything else {other:.1f} s = {100 * other / wall:.1f} % of the wall time")
     items = {"start-up of a render process": found["startup_s"], "EXR write and read of a side's passes":
              found["exr_s"], "accumulation of a side's passes": parts["accumulate_s"] * measured["passes"],

@@ -8,7 +8,9 @@ Run from the repository root::
 
 compare  ``python -m batch compare`` as a whole process (statistics files of 32 passes a side, 32x32 tiles, with
          their pixel sums) against ``python -c "import numpy, scipy.special"``, at 1024x576 and 3840x2160, and
-         at 1024x576 with 256 v 4 passes (the permutation test's cost, unbiased and biased);
+         at 1024x576 with 256 v 4 passes (the permutation test's cost, unbiased and biased), and at 1024x576 with
+         the pixel moments that rendered runs keep, with the pixel-variance test (``--pixel-variance on``) and
+         without it (``off``: no moments read);
          and the statistics alone (`compare` at the stored tile size) against scipy's ``ttest_ind_from_stats``.
          Goals: <= 2.5x and <= 1.2x.
 passes   A pass through the pipeline (`PassRenderer` + `render_passes`: render, save and read the EXR, tile sums,
@@ -64,6 +66,18 @@ def synthetic_run(height: int, width: int, first_seed: int, rng: np.random.Gener
 #: Unequal pass counts (a blessed reference against a short test run): `biased` needs the permutation test too;
 #: an unbiased pair stops drawing resamples early, a biased one draws them all (999 at alpha 0.01).
 UNEQUAL = {"1024x576, 256 v 4, unbiased": 0.0, "1024x576, 256 v 4, biased": 30.0}
+#: Runs with pixel moments, as `render` and `check` write them: compare with the pixel test and without.
+MOMENTS = {"1024x576 with pixel moments, pixel test on": "on", "1024x576 with pixel moments, pixel test off": "off"}
+
+
+def passes_run(height: int, width: int, first_seed: int, rng: np.random.Generator) -> wc.TileStats:
+    """A run of `PASSES` noisy passes added as the render loop adds them: tile sums and pixel moments. Every run
+    is of the same image (its own noise): an A/A pair."""
+    run = wc.TileStats(height, width, TILE, 3, keep_pixel_moments=True)
+    base = np.random.default_rng(0).uniform(0.05, 2.0, (height, width, 3)).astype(np.float32)
+    for seed in range(first_seed, first_seed + PASSES):
+        run.add_pass(base * rng.gamma(4.0, 0.25, base.shape).astype(np.float32), seed)
+    return run
 
 
 def interleaved(commands: dict[str, list[str]], repeats: int) -> dict[str, float]:
@@ -95,8 +109,13 @@ def bench_compare(repeats: int = 7) -> None:
             wc.save_stats(f"{tmp}/{name}_b.npz", synthetic_run(height, width, 1000, rng, 4, shift))
             commands[label] = [PYTHON, "-m", "batch", "compare", f"{tmp}/{name}_a.npz", f"{tmp}/{name}_b.npz",
                                "--out", f"{tmp}/report_{name}"]  # fmt: skip
+        for side, first in (("a", 0), ("b", 1000)):
+            wc.save_stats(f"{tmp}/moments_{side}.npz", passes_run(height, width, first, rng))
+        for label, mode in MOMENTS.items():
+            commands[label] = [PYTHON, "-m", "batch", "compare", f"{tmp}/moments_a.npz", f"{tmp}/moments_b.npz",
+                               "--pixel-variance", mode, "--out", f"{tmp}/report_moments_{mode}"]  # fmt: skip
         medians = interleaved(commands, repeats)
-    for label in [*SIZES, *UNEQUAL]:
+    for label in [*SIZES, *UNEQUAL, *MOMENTS]:
         line(f"batch compare at {label}", medians[label], medians["baseline"], 2.5)
 
     from scipy import stats

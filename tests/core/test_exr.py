@@ -166,3 +166,25 @@ def test_a_failed_write_keeps_the_previous_file(tmp_path, monkeypatch):
     with pytest.raises(OSError, match="No space left on device"):
         write_exr(path, np.zeros((4, 4, 3)))
     assert path.read_bytes() == good and os.listdir(tmp_path) == ["map.exr"]
+
+
+def test_the_colour_is_read_in_any_line_order_and_half_channels_too(tmp_path):
+    """`read_exr` copies the colour straight from the file's pages a band of rows at a time: HALF channels, one
+    row and more rows than a band give OpenEXR's pixels, top row first; lines stored bottom row first too (the
+    OpenEXR module reads those)."""
+    from welch_core.exr import BAND_ROWS, read_exr_colour
+
+    rng = np.random.default_rng(8)
+    for height, order in ((BAND_ROWS * 2 + 5, OpenEXR.DECREASING_Y), (1, OpenEXR.INCREASING_Y)):
+        rgb = rng.uniform(size=(height, 11, 3)).astype(np.float32)
+        channels = {c: np.ascontiguousarray(rgb[..., i]) for i, c in enumerate("RGB")}
+        channels["A"] = np.ones((height, 11), np.float16)
+        path = tmp_path / f"order{height}.exr"
+        OpenEXR.File(header(lineOrder=order), channels).write(str(path))
+        image, names = read_exr_colour(path)
+        assert_array_equal(image, rgb)
+        assert names == ["A", "B", "G", "R"] and image.flags.c_contiguous and image.flags.writeable
+    half = {f"ViewLayer.Combined.{c}": rng.uniform(size=(40, 9)).astype(np.float16) for c in "RGB"}
+    OpenEXR.File(header(), dict(half)).write(str(tmp_path / "half.exr"))
+    expected = np.stack([half[f"ViewLayer.Combined.{c}"] for c in "RGB"], axis=-1).astype(np.float32)
+    assert_array_equal(read_exr(tmp_path / "half.exr"), expected)

@@ -137,6 +137,77 @@ def test_moments_survive_a_statistics_file_and_damaged_ones_are_refused(tmp_path
         wc.load_stats(tmp_path / "bad.npz")
 
 
+def test_moments_added_in_bands_equal_the_whole_image_update_bit_for_bit():
+    """`PixelMoments.add` updates a band of rows at a time (cache-sized): each pixel's operations are those of the
+    update of the whole arrays at once, so the moments are identical, whatever the width (one row a band or many)."""
+    rng = np.random.default_rng(21)
+    for height, width in ((37, 41), (3, 20000), (300, 7)):
+        banded, whole = wc.PixelMoments(height, width), wc.PixelMoments(height, width)
+        for n in range(1, 5):
+            image = (rng.gamma(2.0, 0.5, (height, width, 4)) * 1e3).astype(np.float32)
+            banded.add(image)
+            delta = image[..., :3] - whole.mean  # the update of the whole arrays, as `add` did before bands
+            whole.m2 += delta * delta * ((n - 1) / n)
+            whole.mean += delta / n
+            whole.n = n
+        np.testing.assert_array_equal(banded.mean, whole.mean)
+        np.testing.assert_array_equal(banded.m2, whole.m2)
+
+
+def test_the_mean_image_of_a_run_with_moments_is_theirs_and_outlives_them():
+    """A run that keeps pixel moments keeps no pixel sum: its mean image is n x the moments' mean (float32). Where
+    the moments end (a pass without them) the sum goes on from there."""
+    rng = np.random.default_rng(22)
+    images = noisy(rng, 5).astype(np.float32)
+    run = run_of(images[:3], range(3))
+    np.testing.assert_allclose(run.pixel_sum, images[:3].sum(axis=0), rtol=1e-6, atol=1e-5)  # float32's rounding
+    np.testing.assert_allclose(run.mean_image, images[:3].mean(axis=0), rtol=1e-6, atol=1e-5)
+    assert run.pixel_sum.dtype == np.float32 and run.pixel_sum is run.pixel_sum  # made once per pass count
+    chunk = run_of(images[3:4], [3])
+    run.add_sums(chunk.sums, chunk.seeds, pixels=chunk.pixels)  # with moments: no pixel sum needed
+    np.testing.assert_allclose(run.pixel_sum, images[:4].sum(axis=0), rtol=1e-6, atol=1e-5)
+    plain = wc.TileStats(SIZE, SIZE, TILE, 3, CYCLES)
+    plain.add_pass(images[4], 4)
+    run.add_sums(plain.sums, plain.seeds, plain.pixel_sum)  # without: the moments end, the mean image stays
+    assert run.pixels is None and run.n == 5
+    np.testing.assert_allclose(run.pixel_sum, images.sum(axis=0), rtol=1e-6, atol=1e-5)
+    with pytest.raises(wc.WelchInputError, match="`pixel_sum` is needed"):
+        run.add_sums(plain.sums, [9])
+    merged = run_of(images[:2], range(2)).merge(run_of(images[2:], range(2, 5)))
+    np.testing.assert_allclose(merged.mean_image, images.mean(axis=0), rtol=1e-6, atol=1e-5)
+
+
+def test_a_file_holds_the_mean_in_float32_and_its_pixel_test_is_the_runs(tmp_path):
+    """The statistics file stores a pixel's mean in float32 (M2 in float64, exactly) and no pixel sum beside it.
+    What the pixel test computes from float32 passes read back is the run's own to 1e-5 in t and p, also at a
+    bright offset (1000 x the spread) where the mean's rounding is largest against the spread, and over 200 A/A
+    comparisons through files the verdicts are those made in memory."""
+    rng = np.random.default_rng(23)
+    for offset in (0.0, 1e3):
+        passes = [(noisy(rng, n) + offset).astype(np.float32) for n in (3, 4)]
+        ref, test = run_of(passes[0], range(3)), run_of(passes[1], range(10, 14))
+        wc.save_stats(tmp_path / "ref.npz", ref)
+        wc.save_stats(tmp_path / "test.npz", test)
+        with np.load(tmp_path / "ref.npz") as data:
+            assert data["pixel_mean"].dtype == np.float32 and data["pixel_m2"].dtype == np.float64
+            assert "pixel_sum" not in data.files
+        back_ref, back_test = wc.load_stats(tmp_path / "ref.npz"), wc.load_stats(tmp_path / "test.npz")
+        np.testing.assert_array_equal(back_ref.pixels.m2, ref.pixels.m2)
+        np.testing.assert_allclose(back_ref.pixel_sum, ref.pixel_sum, rtol=1e-6)
+        memory, files = pixel_welch(ref, test), pixel_welch(back_ref, back_test)
+        np.testing.assert_allclose(files.statistic, memory.statistic, rtol=0, atol=1e-5)
+        np.testing.assert_allclose(files.pvalue, memory.pvalue, rtol=0, atol=1e-5)
+    verdicts = {"memory": [], "files": []}
+    for _ in range(200):
+        ref, test = (run_of(noisy(rng, 2).astype(np.float32), seeds) for seeds in (range(2), range(2, 4)))
+        wc.save_stats(tmp_path / "ref.npz", ref)
+        wc.save_stats(tmp_path / "test.npz", test)
+        back = wc.load_stats(tmp_path / "ref.npz"), wc.load_stats(tmp_path / "test.npz")
+        for name, (a, b) in (("memory", (ref, test)), ("files", back)):
+            verdicts[name].append(wc.compare(a, b, 0.05, pixel_variance="auto").verdict.label)
+    assert verdicts["files"] == verdicts["memory"]
+
+
 # -- the statistic -------------------------------------------------------------------------------------------
 
 

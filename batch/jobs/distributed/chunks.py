@@ -15,7 +15,8 @@ from ..loop import Arrival
 class ChunkResult:
     """The passes of one chunk as a worker sends them back (by Dask's pickling): per-pass tile sums, shape
     (n, tiles_y, tiles_x, channels) in the order of `seeds`; the per-pixel sum over these passes (None when not
-    kept) and their pixel moments (each pixel's mean and M2, `welch_core.PixelMoments`; None when not kept); the
+    kept, or when the moments are sent: their mean makes it) and their pixel moments (each pixel's mean and M2,
+    `welch_core.PixelMoments`; None when not kept); the
     grid and the `RunInfo` (as JSON) of the run; each pass's render seconds; the chunk's seconds in
     the worker, request to result; its warnings; which worker rendered it; and the same for each layer of the
     passes (light components, light groups: name -> (sums, pixel sum)). One way out (`from_stats`), one way in
@@ -43,7 +44,7 @@ class ChunkResult:
             pixels = None if run.pixel_sum is None else np.ascontiguousarray(run.pixel_sum)
             return np.ascontiguousarray(run.sums), pixels
 
-        sums, pixel_sum = arrays(stats)
+        sums, pixel_sum = arrays(stats) if stats.pixels is None else (np.ascontiguousarray(stats.sums), None)
         return cls(
             seeds=tuple(int(s) for s in stats.seeds),
             sums=sums,
@@ -71,9 +72,8 @@ class ChunkResult:
 
     def _run(self, sums, pixel_sum, pixels=None) -> wc.TileStats:
         info = wc.RunInfo.from_json(self.info)
-        return wc.TileStats.from_sums(
-            sums, self.seeds, self.height, self.width, self.tile, info, pixel_sum=pixel_sum, pixels=pixels
-        )
+        return wc.TileStats.from_sums(sums, self.seeds, self.height, self.width, self.tile, info, pixel_sum=pixel_sum,
+                                      pixels=pixels, mean_from_pixels=True)  # fmt: skip
 
 
 @dataclass(frozen=True)
