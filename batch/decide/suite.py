@@ -65,6 +65,7 @@ from .._siblings import welch_core as wc
 from ..errors import BatchError, Exit, Undecided
 from ..jobs import command as jobs_command
 from ..jobs import options
+from ..jobs import template as jobs_template
 from ..jobs.distributed import cluster as side_cluster
 from ..jobs.job import BUILTIN_SCENES, NO_GPU_MESSAGE, RenderJob, builtin_scene_id
 from ..jobs.launch import blender_version, bpy_version, no_bpy
@@ -240,7 +241,7 @@ def _case(entry: dict, label: str, folder: Path, problems: list[str]) -> Case | 
     command = entry.get("command")
     if command is not None:
         try:
-            jobs_command.words(options.text("'command'", command))
+            jobs_template.words(options.text("'command'", command))
         except BatchError as exc:
             problems.append(f"{label}: {exc}")
     scene, blend = entry.get("scene"), None

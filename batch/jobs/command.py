@@ -21,9 +21,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import os
-import shlex
 import signal
-import string
 import subprocess
 import sys
 import tempfile
@@ -32,9 +30,7 @@ import time
 from .._siblings import welch_core as wc
 from ..errors import BatchError
 from .launch import pass_limit
-
-PLACEHOLDERS = ("seed", "out", "spp", "set", "python")
-REQUIRED = ("seed", "out")
+from .template import words
 
 #: The run record's renderer for passes of a command (the template's hash is the run's `scene_id`: `scene_id`).
 RENDERER = "command"
@@ -44,35 +40,6 @@ ERROR_TAIL = 600
 
 #: Seconds a stopped command has to end after SIGTERM before it is killed.
 STOP_GRACE = 2.0
-
-
-def words(template: str) -> list[str]:
-    """The template's words, checked: it splits like a shell line, names only `PLACEHOLDERS`, has ``{seed}``
-    and ``{out}``, and ``{set}`` only as a word of its own. Raises BatchError naming the problem."""
-    try:
-        split = shlex.split(template)
-    except ValueError as exc:
-        raise BatchError(f"--command {template!r}: {exc}") from None
-    if not split:
-        raise BatchError("--command is empty: give the command that renders one pass, e.g. "
-                         "'{python} render.py --seed {seed} --out {out}'")  # fmt: skip
-    seen = set()
-    for word in split:
-        try:
-            fields = [field for _, field, _, _ in string.Formatter().parse(word) if field is not None]
-        except ValueError as exc:
-            raise BatchError(f"--command {template!r}: {exc} (write {{{{ and }}}} for a literal brace)") from None
-        for field in fields:
-            if field not in PLACEHOLDERS:
-                raise BatchError(f"--command {template!r}: unknown placeholder {{{field}}} (it takes "
-                                 f"{', '.join('{' + p + '}' for p in PLACEHOLDERS)})")  # fmt: skip
-            if field == "set" and word != "{set}":
-                raise BatchError(f"--command {template!r}: {{set}} must be a word of its own, not in {word!r}")
-        seen.update(fields)
-    missing = [p for p in REQUIRED if p not in seen]
-    if missing:
-        raise BatchError(f"--command {template!r} has no {{{missing[0]}}}: each pass needs its own seed and file")
-    return split
 
 
 def argv(template: str, seed: int, out: str, spp: int, overrides: tuple[str, ...] = ()) -> list[str]:

@@ -18,6 +18,7 @@ from . import options
 from .lobes import LOBES, parse_lobes
 from .options import DEVICES, ON_NAN, add_options, default
 from .seeds import MAX_PASSES, format_seeds, parse_seeds
+from .template import words
 
 #: The built-in scenes (`batch.blender.scenes.SCENES` builds them; a test holds the two together), named here so
 #: that a job or a suite naming another one is refused before anything starts.
@@ -117,8 +118,6 @@ class RenderJob:
             self._check_command()
 
     def _check_command(self) -> None:
-        from .command import words
-
         if self.overrides and "{set}" not in words(self.command):
             raise BatchError(f"--command {self.command!r} has no {{set}} for the overrides {list(self.overrides)}")
         cycles = {"a scene": self.blend or self.scene or self.blend_scene, "--blender": self.blender,

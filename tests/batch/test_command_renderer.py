@@ -21,6 +21,7 @@ import welch_core as wc
 from batch.errors import BatchError
 from batch.jobs import command
 from batch.jobs.job import RenderJob
+from batch.jobs.template import words as template_words
 from tests.helpers.pytest_runs import pytest_in, skip_unless_plugin_installed
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -87,7 +88,7 @@ def toy(tmp_path):
 )
 def test_a_bad_template_is_refused_in_one_line(template, message):
     with pytest.raises(BatchError) as caught:
-        command.words(template)
+        template_words(template)
     assert str(caught.value) == message
 
 
