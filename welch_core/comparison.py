@@ -230,6 +230,9 @@ def scale_factors(run: TileStats, tile: int | None = None) -> list[int]:
 #: some hundreds of them), not a difference of the light. Two processes of one build can render the same passes
 #: with different last bits (Cycles 4.5.4 always; 5.0.1's textured scene in a few tiles, the same in every pass).
 ROUNDING = 1e-6
+#: The smallest tolerance: a claim within less than ten times float rounding would rest on differences it counts
+#: as none.
+MIN_TOLERANCE = 1e-5
 
 #: Paired differences exactly zero in at least this share of the passes are "mostly exact zeros": a change that
 #: alters a few light paths, its own case in the diagnostics (not fireflies), whichever test the tile gets.
@@ -491,8 +494,11 @@ def selftest(ref: TileStats, alpha: float = 0.01) -> Comparison | None:
 def check_tolerance(tolerance) -> float | None:
     if tolerance is None:
         return None
-    if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float)) or not 0 < tolerance < 10:
-        raise WelchInputError(f"`tolerance` must be a relative difference in (0, 10), got {tolerance!r}")
+    if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float)) or not MIN_TOLERANCE <= tolerance < 10:
+        raise WelchInputError(
+            f"`tolerance` must be a relative difference in [{MIN_TOLERANCE:g}, 10) (less is float rounding), got "
+            f"{tolerance!r}"
+        )
     return float(tolerance)
 
 

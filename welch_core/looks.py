@@ -56,6 +56,7 @@ from .comparison import (
     TileTest,
     assess_scales,
     check_claim_tile,
+    check_tolerance,
     choose_test,
     differences_of,
     identical_passes_of,
@@ -124,8 +125,7 @@ class SequentialPlan:
     def __post_init__(self):
         check_int("max_passes", self.max_passes, minimum=FIRST_LOOK)
         check_alpha(self.alpha)
-        if self.tolerance is not None and not 0 < self.tolerance < 10:
-            raise WelchInputError(f"`tolerance` must be a relative difference in (0, 10), got {self.tolerance!r}")
+        check_tolerance(self.tolerance)
         if self.spending not in SPENDING:
             raise WelchInputError(f"`spending` must be one of {tuple(SPENDING)}, got {self.spending!r}")
         if not 0 <= self.reserve < 1:

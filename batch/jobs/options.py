@@ -31,6 +31,9 @@ MAX_SPP = 2**24
 MAX_SECONDS = 7 * 24 * 3600.0
 #: The largest tolerance, as a fraction (1000 %).
 MAX_TOLERANCE = 10.0
+#: The smallest tolerance (0.001 %): ten times float rounding, below which differences count as none
+#: (`welch_core.comparison.MIN_TOLERANCE`; this module stays free of numpy for the add-on's registration).
+MIN_TOLERANCE = 1e-5
 #: The largest seed offset: an unpaired check's test seeds (from `MAX_PASSES`, `batch.decide.check`) and a
 #: budget of `MAX_PASSES` after it stay within Cycles' seeds.
 MAX_SEED_OFFSET = MAX_SEED + 1 - 2 * MAX_PASSES
@@ -87,6 +90,9 @@ def percentage(name: str, value, high: float = MAX_TOLERANCE) -> float:
             number = float(text[:-1]) / 100.0
         except ValueError:
             pass
+    if 0.0 < number < MIN_TOLERANCE:
+        raise BatchError(f"{name} must be at least {100 * MIN_TOLERANCE:g}% (a smaller relative difference is float "
+                         f"rounding), got {_show(value)}")  # fmt: skip
     if not 0.0 < number < high:
         raise BatchError(f"{name} must be a percentage such as 0.5%, got {_show(value)}")
     return number

@@ -36,6 +36,11 @@ def check(*args, expect=None) -> subprocess.CompletedProcess:
     [
         (["--tolerance", "1"], "argument --tolerance: must be a percentage such as 0.5%, got '1'"),
         (["--tolerance", "abc%"], "argument --tolerance: must be a percentage such as 0.5%, got 'abc%'"),
+        (
+            ["--tolerance", "0.0005%"],
+            "argument --tolerance: must be at least 0.001% (a smaller relative difference is float rounding), got "
+            "'0.0005%'",
+        ),
         (["--unpaired", "--max-passes", "1"], "argument --max-passes: must be an integer in 2..1000000, got '1'"),
         (["--unpaired", "--max-passes", "1e9"], "argument --max-passes: must be an integer in 2..1000000, got '1e9'"),
         (

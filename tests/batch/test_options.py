@@ -186,3 +186,10 @@ def test_the_pixel_variance_modes_are_the_statistics_ones():
     from batch.jobs import options
 
     assert options.OPTIONS["pixel_variance"].choices == options.PIXEL_MODES == wc.PIXEL_MODES
+
+
+def test_the_smallest_tolerance_is_the_statistics_own():
+    """The declaration stays free of numpy (the add-on registers it), so it writes the limit again."""
+    import welch_core.comparison
+
+    assert options.MIN_TOLERANCE == welch_core.comparison.MIN_TOLERANCE

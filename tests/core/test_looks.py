@@ -30,7 +30,14 @@ def test_look_schedule():
     [
         ({"max_passes": 1}, "`max_passes` must be an integer >= 2, got 1"),
         ({"max_passes": 8, "alpha": 2.0}, "`alpha` must be a number in (0, 1), got 2.0"),
-        ({"max_passes": 8, "tolerance": 0.0}, "`tolerance` must be a relative difference in (0, 10), got 0.0"),
+        (
+            {"max_passes": 8, "tolerance": 0.0},
+            "`tolerance` must be a relative difference in [1e-05, 10) (less is float rounding), got 0.0",
+        ),
+        (
+            {"max_passes": 8, "tolerance": 5e-6},
+            "`tolerance` must be a relative difference in [1e-05, 10) (less is float rounding), got 5e-06",
+        ),
         ({"max_passes": 8, "spending": "haybittle"}, "`spending` must be one of ('obrien_fleming', 'pocock')"),
         ({"max_passes": 8, "early_share": 1.0}, "`early_share` must lie in [0, 1), got 1.0"),
     ],
