@@ -150,7 +150,7 @@ class CheckRun:
         text = f"pass {self.passes}/{self.budget} a side"
         look = self.looked
         if look is not None:
-            bound = f"; a bias beyond {fmt.magnitude(look.ruled_out)} ruled out" if look.ruled_out else ""
+            bound = f"; a bias beyond {fmt.bound(look.ruled_out)} ruled out" if look.ruled_out else ""
             text += f", smallest p {fmt.p_value(look.p_value)} (stops at {fmt.p_value(look.threshold)}){bound}"
         return text
 

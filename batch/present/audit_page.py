@@ -218,7 +218,7 @@ def _cell(result) -> str:
         body.append(f'<div class="why">{html.escape(why if len(why) <= 160 else why[:157] + "…")}</div>')
     if result.status == "undecided" and first and first.get("ruled_out"):
         ruled = first["ruled_out"]
-        body.append(f'<div class="muted">±{100 * ruled["bias"]:.2f} % ruled out per {ruled["tile"]}² tile</div>')
+        body.append(f'<div class="muted">±{fmt.bound(ruled["bias"])} ruled out per {ruled["tile"]}² tile</div>')
     if first is not None:
         passes = f"{first['passes']}" + (f" + {confirm['passes']}" if confirm else "")
         body.append(f'<div class="muted">{passes} passes · {result.seconds:.0f} s</div>')

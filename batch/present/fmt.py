@@ -62,6 +62,14 @@ def magnitude(x: float | None, digits: int = 2) -> str:
     return f"{abs(x) * 100:.{digits}f} %"
 
 
+def bound(x: float | None, digits: int = 2) -> str:
+    """A bias ruled out beyond `x`, as `magnitude` says it, but never '0.00 %' for a bound above 0 (a difference of
+    float rounding): the smallest size shown, '0.01 %', which it is below."""
+    if x is not None and math.isfinite(x) and 0 < abs(x) * 100 < 0.5 * 10**-digits:
+        return f"{10**-digits:.{digits}f} %"
+    return magnitude(x, digits)
+
+
 def interval(low: float | None, high: float | None, digits: int = 2) -> str:
     """'[-0.35 %, +1.68 %]'; '[—]' where either end is unknown."""
     if low is None or high is None or not (math.isfinite(low) and math.isfinite(high)):

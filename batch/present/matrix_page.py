@@ -18,7 +18,7 @@ def _cell(pair, page: Path) -> str:
     colour = _STATUS_COLOURS[verdict_status(pair.verdict)]
     whole = pair.whole_image
     difference = html.escape(fmt.difference(whole)) if whole and whole.get("estimate") is not None else "—"
-    bound = "—" if pair.ruled_out is None else f"±{100 * pair.ruled_out:.2f} %"
+    bound = "—" if pair.ruled_out is None else f"±{fmt.bound(pair.ruled_out)}"
     thumbnail = pvalue_thumbnail(Path(pair.folder))
     image = f'<img alt="p-value map" src="{thumbnail}">' if thumbnail else ""
     link = html.escape(os.path.relpath(Path(pair.folder) / "report.html", page.parent))

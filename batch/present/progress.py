@@ -178,7 +178,7 @@ class Progress:
                 return f"error: {message}"
             case protocol.Looked(passes=passes, p_value=p, threshold=threshold, ruled_out=bound, verdict=verdict):
                 evidence = f"smallest p {fmt.p_value(p)} (stops at {fmt.p_value(threshold)})"
-                bias = "no bound yet" if bound is None else f"a bias beyond {fmt.percent(bound).lstrip('+')} ruled out"
+                bias = "no bound yet" if bound is None else f"a bias beyond {fmt.bound(bound)} ruled out"
                 state = verdict if verdict is not None else f"{fmt.count(event.left, 'look')} left"
                 rendered = f"rendering {fmt.duration(event.seconds)} (sides summed)"
                 return f"{label}: {fmt.count(passes, 'pass')} a side, {rendered}: {evidence}; {bias}; {state}"

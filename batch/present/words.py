@@ -46,7 +46,7 @@ def claim_scale(outcome: dict[str, Any]) -> dict[str, Any] | None:
 def ruled_out_list(outcome: dict[str, Any]) -> str:
     """'16: not bounded, 32: 2.10 %, 64: 1.20 %' : the bias ruled out at each tile size."""
     return ", ".join(
-        f"{s['tile']}: {'not bounded' if s['ruled_out'] is None else fmt.magnitude(s['ruled_out'])}"
+        f"{s['tile']}: {'not bounded' if s['ruled_out'] is None else fmt.bound(s['ruled_out'])}"
         for s in outcome["scales"]
     )
 
@@ -64,7 +64,7 @@ def _ruled_out_there(scale: dict[str, Any]) -> str:
     """'a bias beyond 0.82 % is ruled out there', or that every tile is identical on both sides."""
     if scale["ruled_out"] == 0:
         return "identical on both sides there"
-    return f"a bias beyond {fmt.magnitude(scale['ruled_out'])} is ruled out there"
+    return f"a bias beyond {fmt.bound(scale['ruled_out'])} is ruled out there"
 
 
 def finer_needs(outcome: dict[str, Any], tile: int) -> str | None:

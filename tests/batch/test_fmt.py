@@ -14,6 +14,13 @@ def test_percentages():
     assert fmt.percent(None) == fmt.percent(float("inf")) == "n/a"
 
 
+def test_a_bound_above_zero_is_never_written_as_zero():
+    """'a bias beyond 0.00 % is ruled out' said of passes that differ only by float rounding: the bound is above 0,
+    so it is written as the smallest size shown, which it is below."""
+    assert fmt.bound(3e-9) == fmt.bound(4.9e-5) == "0.01 %" and fmt.bound(0.0) == "0.00 %"
+    assert fmt.bound(0.0082) == fmt.magnitude(0.0082) == "0.82 %" and fmt.bound(None) == "—"
+
+
 def test_durations():
     assert fmt.duration(None) == fmt.duration(float("nan")) == fmt.duration(-1) == "?"
     assert fmt.duration(0.64) == "0.6 s" and fmt.duration(9.96) == "10 s"
