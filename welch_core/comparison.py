@@ -289,7 +289,6 @@ def test_tiles(
             result = TTestResult(**{f: np.where(unpaired, getattr(welch, f), getattr(result, f)) for f in fields})
             cross = np.where(unpaired, -ref_var, cross)
             suspect, excess = suspect & ~unpaired, np.where(unpaired, own_excess, excess)
-        result = _rounding_is_no_difference(result, ref.mean)
         checked = diffs.n >= MIN_PASSES_FOR_NORMALITY
         sparse = (diffs.sums == 0).mean(axis=0) >= SPARSE_SHARE if diffs.n else np.zeros_like(suspect)
         pixel = use & ~unpaired if pixels else None
@@ -309,9 +308,10 @@ def test_tiles(
 
 
 def _rounding_is_no_difference(result: TTestResult, ref_mean: np.ndarray) -> TTestResult:
-    """`result` with each deterministic difference (both sides constant, or every pass's difference the same) no
-    larger than float rounding of the tile's value (`ROUNDING`) counted as no difference (ZERO_VARIANCE): it is the
-    arithmetic's, not the light's, and would otherwise be `biased` at any size."""
+    """`result` with each deterministic difference of Welch's test (both sides constant) no larger than float
+    rounding of the tile's value (`ROUNDING`) counted as no difference (ZERO_VARIANCE): it is the arithmetic's, not
+    the light's, and would otherwise be `biased` at any size. (Paired passes: `paired_differences` zeroes such a
+    difference pass by pass.)"""
     with np.errstate(invalid="ignore"):
         rounding = (result.reason == Reason.DETERMINISTIC_DIFFERENCE) & (
             np.abs(result.mean_difference) <= ROUNDING * np.abs(ref_mean)
