@@ -92,22 +92,30 @@ def difference_picture(reference: npt.ArrayLike, test: npt.ArrayLike, share: flo
     diverging map (blue: test darker, white: equal, red: test brighter), and the difference its ends stand for,
     relative to the reference's mean brightness: the `share` quantile of |difference| (so a few fireflies don't
     wash the rest out), for the scale bar. (None, 0.0) where the images can't be compared."""
-    ref = np.asarray(reference, dtype=np.float64)[..., :3].mean(axis=-1)
-    tst = np.asarray(test, dtype=np.float64)[..., :3].mean(axis=-1)
+    ref, tst = (np.asarray(image, dtype=np.float32)[..., :3] for image in (reference, test))
     if ref.shape != tst.shape:
         return None, 0.0
-    diff = tst - ref
+    ref, tst = (_channel_mean(image) for image in (ref, tst))
+    diff = (tst - ref).astype(np.float32)
     diff[~np.isfinite(diff)] = 0.0
     magnitude = np.abs(diff)
     limit = float(np.quantile(magnitude, share)) if diff.size else 0.0
     finite = np.isfinite(ref)
     brightness = float(np.mean(np.abs(ref[finite]))) if finite.any() else 0.0
-    t = np.minimum(magnitude / limit, 1.0) if limit > 0 else np.zeros_like(diff)  # |difference| on the map's scale
-    rgb = np.empty((*diff.shape, 3), np.float32)
-    brighter = diff > 0
-    for channel, (red, blue) in enumerate(zip((0.7, 0.1, 0.1), (0.1, 0.25, 0.7), strict=True)):  # the map's ends
-        rgb[..., channel] = 1.0 + np.where(brighter, red - 1.0, blue - 1.0) * t
+    t = np.minimum(magnitude / np.float32(limit), 1.0) if limit > 0 else np.zeros_like(diff)  # on the map's scale
+    ends = np.where(diff[..., None] > 0, _BRIGHTER - 1.0, _DARKER - 1.0)  # the map's ends, less white
+    rgb = 1.0 + ends * t[..., None]
     return rgb, (limit / brightness if brightness > 0 else 0.0)
+
+
+def _channel_mean(image: np.ndarray) -> np.ndarray:
+    """The mean of an H×W×3 image's channels in float64 (channel by channel: 4x a sum over the short last axis)."""
+    return (image[..., 0].astype(np.float64) + image[..., 1] + image[..., 2]) / 3.0
+
+
+#: The difference map's ends: red where the test is brighter, blue where it is darker.
+_BRIGHTER = np.array([0.7, 0.1, 0.1], np.float32)
+_DARKER = np.array([0.1, 0.25, 0.7], np.float32)
 
 
 def map_values(pvalues: npt.ArrayLike, mode: str = "min", channel: int | None = None, qvalues=None) -> np.ndarray:

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from . import parallel
 from .errors import WelchInputError
 
 __all__ = ["read_exr", "read_exr_channels", "read_exr_colour", "write_exr"]
@@ -254,7 +255,7 @@ def _read_with_openexr(name: str) -> dict[str, np.ndarray]:
         ) from None
     try:
         # Decoded on every core: a ZIP-compressed 1920x1080 pass takes 0.1 s on one (the module's default).
-        parts = OpenEXR.File(name, separate_channels=True, num_threads=_cores()).parts
+        parts = OpenEXR.File(name, separate_channels=True, num_threads=parallel.cores()).parts
     except Exception as exc:  # OpenEXR raises bare RuntimeError/Exception for damaged files
         raise WelchInputError(f"{name!r} is not a readable EXR file ({exc})") from None
     # The part that has colour: plain or Combined RGB before any other (a multi-part file may keep it anywhere).
@@ -277,14 +278,6 @@ def _read_with_openexr(name: str) -> dict[str, np.ndarray]:
             out[channel] = pixels.astype(np.float32, copy=False)
         return out
     raise WelchInputError(f"{name!r} has no parts")
-
-
-def _cores() -> int:
-    """The cores this process may run on."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
 
 
 def _has_colour(channels) -> bool:

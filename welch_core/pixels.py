@@ -50,6 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from . import parallel
 from .errors import WelchInputError
 from .ttest import Reason, TTestResult, paired_from_stats, two_sided_pvalue, welch_from_stats
 
@@ -142,7 +143,6 @@ class PixelMoments:
         self.n = 0
         self.mean = np.zeros((height, width, channels))
         self.m2 = np.zeros((height, width, channels))
-        self._scratch: tuple[np.ndarray, np.ndarray] | None = None  # a band's delta and step (`add`)
         self._memo: dict = {}  # what `terms` computed at this n (every scale asks again)
         self._conflicts: dict = {}  # what `conflict` found at this n, by the tile sums' grid and array
         self._merged: tuple | None = None  # (the other moments, their n, `merged` with them)
@@ -181,24 +181,28 @@ class PixelMoments:
 
         Welford's update, a band of `BAND_ELEMENTS` at a time: the band's pass, mean, M2 and the two scratch
         arrays stay in a core's cache, so every array travels between memory and the core once a pass (the same
-        operations on the whole arrays at once take twice as long at 1920x1080, measured). Each pixel's result is
-        the same, bit for bit, however the rows are banded."""
+        operations on the whole arrays at once take twice as long at 1920x1080, measured), and the rows in one chunk
+        a core (`welch_core.parallel`). Each pixel's result is the same, bit for bit, however the rows are banded
+        or chunked."""
         x = np.asarray(image)[..., : self.shape[2]]
         if x.shape != self.shape:
             raise WelchInputError(f"`image` must be {self.shape[0]}x{self.shape[1]} like the moments, got {x.shape}")
-        rows = max(1, BAND_ELEMENTS // (self.shape[1] * self.shape[2]))
-        if self._scratch is None:  # two buffers kept between passes: no allocation per pass
-            self._scratch = (np.empty((rows, *self.shape[1:])), np.empty((rows, *self.shape[1:])))
         self._memo.clear()
         self._conflicts.clear()
         self._merged = None
         self.n += 1
+        band = max(1, BAND_ELEMENTS // (self.shape[1] * self.shape[2]))
+        parallel.by_rows(lambda rows: self._add_rows(x, rows, band), self.shape[0], band, x.size)
+
+    def _add_rows(self, x: np.ndarray, rows: slice, band: int) -> None:
+        """Welford's update of `rows`, `band` rows at a time."""
         n, factor = self.n, (self.n - 1) / self.n
-        for start in range(0, self.shape[0], rows):
-            band = slice(start, start + rows)
-            mean, m2 = self.mean[band], self.m2[band]
-            delta, step = (scratch[: len(mean)] for scratch in self._scratch)
-            np.subtract(x[band], mean, out=delta)
+        scratch = np.empty((2, band, *self.shape[1:]))  # a band's delta and step: 2 x 0.25 MB
+        for start in range(rows.start, rows.stop, band):
+            part = slice(start, min(start + band, rows.stop))
+            mean, m2 = self.mean[part], self.m2[part]
+            delta, step = scratch[0, : len(mean)], scratch[1, : len(mean)]
+            np.subtract(x[part], mean, out=delta)
             np.multiply(delta, delta, out=step)  # Welford: M2 grows by delta² (n - 1) / n, the mean by delta / n
             step *= factor
             m2 += step
@@ -246,8 +250,17 @@ class PixelMoments:
             factor = tile // base[0]
             self._memo[key] = tuple(_block_sums(a, factor, grid) for a in self._memo[base])
             return self._memo[key]
-        s2 = self.m2 / self.n + self.mean**2 if about_zero else self.variance()
-        self._memo[key] = _tile_totals(s2, tile, grid, covered), _tile_totals(s2 * s2, tile, grid, covered)
+        n = self.n
+
+        def s2(m2, mean):  # each pixel's s_p² (or second moment about 0), a row of tiles at a time
+            if about_zero:
+                return m2 / n + mean**2
+            return m2 / (n - 1) if n > 1 else np.full(m2.shape, np.nan)
+
+        both = (self.m2, self.mean)
+        v = _tile_totals(both, tile, grid, covered, s2)
+        q = _tile_totals(both, tile, grid, covered, lambda m2, mean: s2(m2, mean) ** 2)
+        self._memo[key] = v, q
         return self._memo[key]
 
     def conflict(self, tile: int, grid: tuple[int, int], covered: tuple[int, int], sums: np.ndarray):
@@ -259,9 +272,11 @@ class PixelMoments:
         if key in self._conflicts:
             return self._conflicts[key]
         with np.errstate(invalid="ignore", over="ignore"):
-            sd = np.sqrt(self.m2)
-            total, spread = _tile_totals(self.mean, tile, grid, covered), _tile_totals(sd, tile, grid, covered)
-            scale = _tile_totals(np.abs(self.mean), tile, grid, covered) + spread
+            total, spread = (
+                _tile_totals(self.mean, tile, grid, covered),
+                _tile_totals(self.m2, tile, grid, covered, np.sqrt),
+            )
+            scale = _tile_totals(self.mean, tile, grid, covered, np.abs) + spread
             n = len(sums)
             rounding = tile * np.finfo(np.float32).eps + (n + tile * tile) * np.finfo(np.float64).eps
             slack = ROUNDING * rounding * np.sqrt(n + 1.0) * scale
@@ -290,16 +305,20 @@ def _check_values(name: str, values: np.ndarray, allowed: str, good: np.ndarray)
     raise WelchInputError(f"{name} must be {allowed}, got {float(values[y, x, c])!r} ({where})")
 
 
-def _tile_totals(values: np.ndarray, tile: int, grid: tuple[int, int], covered: tuple[int, int]) -> np.ndarray:
-    """Sums of `values` (H×W×C) over the `covered` pixels of each tile of a `grid` of `tile`-pixel tiles (the right
-    and bottom tiles partial where the tile does not divide them), in float64."""
-    out = np.zeros((grid[0], grid[1], values.shape[2]))
+def _tile_totals(values, tile: int, grid: tuple[int, int], covered: tuple[int, int], of=None) -> np.ndarray:
+    """Sums of `values` (H×W×C), or of `of(values)` (elementwise: np.sqrt; `values` may then be a tuple of such
+    arrays, its arguments), over the `covered` pixels of each tile of a `grid` of `tile`-pixel tiles (the right and
+    bottom tiles partial where the tile does not divide them), in float64. `of` is applied a row of tiles at a
+    time: no image-sized array is made (a new one's first write is slow where the kernel compacts memory for it)."""
+    arrays = values if isinstance(values, tuple) else (values,)
+    out = np.zeros((grid[0], grid[1], arrays[0].shape[2]))
     rows, cols = min(covered[0], grid[0] * tile), min(covered[1], grid[1] * tile)
     full = min(cols // tile, grid[1])  # complete tiles across; a partial one after them where the columns go on
     # A row of tiles at a time: its rows summed first with a contiguous inner axis, then its columns (4x faster
     # than one sum over both; no padded copy of the image).
     for row in range(-(-rows // tile)):
-        band = values[row * tile : min((row + 1) * tile, rows), :cols].sum(axis=0, dtype=np.float64)
+        bands = [a[row * tile : min((row + 1) * tile, rows), :cols] for a in arrays]
+        band = (bands[0] if of is None else of(*bands)).sum(axis=0, dtype=np.float64)
         if full:
             out[row, :full] = band[: full * tile].reshape(full, tile, -1).sum(axis=1)
         if cols > full * tile:

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from . import parallel
 from .errors import GridMismatchError, RunMismatchError, WelchInputError, check_int
 from .pixels import PixelMoments, summed_means
 
@@ -153,15 +154,20 @@ def tile_sums(image: npt.ArrayLike, tile: int, channels: int = 3, edges: str = "
 
 
 def _full_tile_sums(image: np.ndarray, tile: int, channels: int, ty: int, tx: int) -> np.ndarray:
-    """The sums of the complete tiles, (ty, tx, channels)."""
+    """The sums of the complete tiles, (ty, tx, channels): rows of tiles on every core (`welch_core.parallel`)."""
     width = image.shape[1]
-    rows = image[: ty * tile].reshape(ty, tile, width * image.shape[2])
-    # Sum the tile's rows first with a contiguous inner axis (near memory speed), then the columns in float64.
-    # For float32 input the row partial sums of `tile` values stay in float32: their rounding error (~1e-7
-    # relative, measured) is far below the pass-to-pass spread of a tile sum and has no systematic sign.
-    row_sums = rows.sum(axis=1)
-    row_sums = row_sums.reshape(ty, width, image.shape[2])[:, : tx * tile, :channels]
-    return row_sums.reshape(ty, tx, tile, channels).sum(axis=2, dtype=np.float64)
+    out = np.empty((ty, tx, channels))
+
+    def tile_rows(rows: slice) -> None:
+        part = image[rows.start * tile : rows.stop * tile].reshape(-1, tile, width * image.shape[2])
+        # Sum the tile's rows first with a contiguous inner axis (near memory speed), then the columns in float64.
+        # For float32 input the row partial sums of `tile` values stay in float32: their rounding error (~1e-7
+        # relative, measured) is far below the pass-to-pass spread of a tile sum and has no systematic sign.
+        row_sums = part.sum(axis=1).reshape(-1, width, image.shape[2])[:, : tx * tile, :channels]
+        row_sums.reshape(-1, tx, tile, channels).sum(axis=2, dtype=np.float64, out=out[rows])
+
+    parallel.by_rows(tile_rows, ty, 1, ty * tile * width * channels)
+    return out
 
 
 def tile_row_blocks(sums: np.ndarray, budget: int | None = None):

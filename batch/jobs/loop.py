@@ -81,7 +81,7 @@ class Run:
         if checkpoints is None:
             wc.save_stats(self.out, self.stats, self.layers)
         else:
-            checkpoints.write(self.out, wc.formats.stats_arrays(self.stats, self.layers))
+            checkpoints.write(self.out, self.stats, self.layers)
 
 
 def _reordered(stats: wc.TileStats, order: list[int]) -> wc.TileStats:

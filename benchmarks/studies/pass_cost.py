@@ -15,7 +15,8 @@ ingest   ``ingest`` of N passes against reading them, whole processes, per pass 
 bpy      Cycles passes whose render costs nothing: one real render, then `PassRenderer` and the render loop
          (`batch.blender.run.render_passes`: re-seed, save the Render Result as EXR, read it, accumulate, a
          checkpoint every 8 passes) with the render operator replaced by a no-op, against the floor of Blender's
-         `save_render` and `read_exr` of the same Render Result.
+         `save_render` and `read_exr` of the same Render Result; both timed from the first pass to the last (the
+         final save left out, as for command).
 workers  ``render --command ... --workers 2`` (two Dask workers on this machine) against two floor loops at once.
 
 Prints, per size and source, the floor and the tool in ms a pass and passes per second, the tool's own cost
@@ -68,6 +69,7 @@ BPY = textwrap.dedent(
     import welch_core as wc
     from batch.blender import render, scenes
     from batch.blender.run import render_passes
+    from batch.jobs import protocol
     from batch.present.progress import Progress
 
     width, height, passes, blocks = map(int, sys.argv[1:5])
@@ -80,32 +82,35 @@ BPY = textwrap.dedent(
         def __getattr__(self, name):
             return getattr(bpy, name)
 
-    class Silent(Progress):
+    class Timed(Progress):  # the time each pass arrived, as the command source's events are timed
         def emit(self, event):
-            pass
+            if isinstance(event, protocol.PassDone):
+                stamps.append(time.perf_counter())
 
     scene = scenes.build_scene("corner")
     render.configure_unbiased(scene, "CPU", 1, (width, height))
     bpy.ops.render.render(scene=scene.name)  # the one real render
     render.bpy = NoRender()
     timed = {"floor": [], "tool": []}
+    stamps = []
     seeds = iter(range(10**6))
     with tempfile.TemporaryDirectory() as tmp, render.PassRenderer(scene) as renderer:
         def floor():
             for _ in range(passes):
                 bpy.data.images["Render Result"].save_render(renderer.path, scene=scene)
                 wc.read_exr(renderer.path)
+                stamps.append(time.perf_counter())
 
         def tool():
             stats = wc.TileStats(height, width, min(32, width, height), 3, keep_pixel_moments=True)
-            progress = Silent(passes, live=False)
+            progress = Timed(passes, live=False)
             render_passes(renderer, [next(seeds) for _ in range(passes)], stats, progress, out=f"{tmp}/run.npz")
 
         for _ in range(blocks):
             for name, work in (("floor", floor), ("tool", tool)):
-                start = time.perf_counter()
+                stamps.clear()
                 work()
-                timed[name].append((time.perf_counter() - start) / passes)
+                timed[name].append((stamps[-1] - stamps[0]) / (len(stamps) - 1))
     print(json.dumps({name: statistics.median(values) for name, values in timed.items()}))
     """
 )

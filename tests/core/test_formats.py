@@ -12,7 +12,7 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 from welch_core import PixelMoments, RunInfo, StatsFileError, TileStats, WelchInputError, load_stats, save_stats
-from welch_core.formats import FORMAT_NAME, FORMAT_VERSION
+from welch_core.formats import FORMAT_NAME, FORMAT_VERSION, stats_arrays
 
 
 def make_run(seed=0, n=4, height=24, width=40, tile=8, info=None):
@@ -103,6 +103,36 @@ def test_round_trip_without_mean_image_and_empty(tmp_path):
     assert back.n == 0 and back.sums.shape == (0, 2, 3, 3)
 
 
+def test_a_checkpoints_copies_go_into_the_arrays_of_the_one_before(tmp_path):
+    rng = np.random.default_rng(4)
+    run = TileStats(16, 24, 8, keep_pixel_moments=True)
+    for seed in range(3):
+        run.add_pass(rng.random((16, 24, 3), dtype=np.float32), seed)
+    first = stats_arrays(run)
+    run.add_pass(rng.random((16, 24, 3), dtype=np.float32), 3)
+    second = stats_arrays(run, into=first)
+    assert second["pixel_m2"] is first["pixel_m2"] and second["pixel_mean"] is first["pixel_mean"]
+    assert_array_equal(second["pixel_m2"], run.pixels.m2)
+    assert_array_equal(second["pixel_mean"], run.pixels.mean.astype(np.float32))
+    run.add_pass(rng.random((16, 24, 3), dtype=np.float32), 4)  # the copies do not change with the run
+    assert not np.array_equal(second["pixel_m2"], run.pixels.m2)
+    other = TileStats(8, 24, 8, keep_pixel_moments=True)  # arrays of another shape are not reused
+    other.add_pass(rng.random((8, 24, 3), dtype=np.float32), 0)
+    assert stats_arrays(other, into=second)["pixel_m2"] is not second["pixel_m2"]
+
+
+def test_members_are_the_bytes_numpy_writes(tmp_path):
+    """The arrays are written without numpy's copy of them, byte for byte as `np.lib.format.write_array` writes."""
+    run = make_run()
+    save_stats(tmp_path / "run.npz", run)
+    with zipfile.ZipFile(tmp_path / "run.npz") as archive:
+        for name in archive.namelist():
+            member = io.BytesIO()
+            with np.load(tmp_path / "run.npz", allow_pickle=False) as data:
+                np.lib.format.write_array(member, data[name[: -len(".npy")]], allow_pickle=False)
+            assert archive.read(name) == member.getvalue(), name
+
+
 def test_file_never_holds_pickles(tmp_path):
     save_stats(tmp_path / "run.npz", make_run())
     with np.load(tmp_path / "run.npz", allow_pickle=False) as data:
@@ -125,11 +155,11 @@ def test_failed_write_keeps_the_old_file(tmp_path, monkeypatch):
     save_stats(path, run)
     good = path.read_bytes()
 
-    def full_disk(member, array, **_kw):
+    def full_disk(member, header):  # a member's header written in part, then the disk is full
         member.write(b"partial")
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(np.lib.format, "write_array", full_disk)
+    monkeypatch.setattr(np.lib.format, "write_array_header_1_0", full_disk)
     msg = f"can't write statistics file {str(path)!r}: No space left on device"
     with pytest.raises(WelchInputError, match=re.escape(msg)):
         save_stats(path, make_run(seed=3))
@@ -141,8 +171,8 @@ def test_a_failed_write_prints_nothing_afterwards(tmp_path):
     """No 'Exception ignored in ZipFile.__del__' traceback: the archive is closed on the failing path."""
     script = (
         "import numpy as np, welch_core as wc, gc\n"
-        "def full(member, array, **kw): raise OSError(28, 'No space left on device')\n"
-        "np.lib.format.write_array = full\n"
+        "def full(member, header): raise OSError(28, 'No space left on device')\n"
+        "np.lib.format.write_array_header_1_0 = full\n"
         "run = wc.TileStats(16, 16, 8)\n"
         "try:\n"
         f"    wc.save_stats({str(tmp_path / 'x.npz')!r}, run)\n"
