@@ -49,7 +49,7 @@ class CheckRun:
     """One check, polled: its state (``RUNNING``, ``FINISHED``, ``FAILED`` or ``CANCELLED``), progress, the last
     look (for a live map) and, when finished, its result: (the final look, both sides' statistics)."""
 
-    job: object  # a batch.decide.check.CheckJob
+    job: object  # a batch.decide.check_job.CheckJob
     temporary_files: list[str] = field(default_factory=list)
     env: dict | None = None  # the render processes' environment (default: this process's)
     state: str = RUNNING

@@ -88,7 +88,7 @@ def settings_key(settings, scene) -> tuple:
 
 
 def check_request(settings, scene, blend: str, folder: Path, resume: bool, blender: str = ""):
-    """The check of a run (on the saved copy `blend`) as `batch.decide.check.CheckRequest`: the panel's settings,
+    """The check of a run (on the saved copy `blend`) as `batch.decide.check_job.CheckRequest`: the panel's settings,
     and the command line's defaults for everything the panel does not set."""
     reference, test = checks.sides(settings, scene)
     other = bpy.path.abspath(settings.test_build) if settings.test_build else ""
@@ -118,7 +118,7 @@ def check_request(settings, scene, blend: str, folder: Path, resume: bool, blend
 
 def scene_samples(jobs) -> list:
     """What each side's scene asks of the passes (``--spp auto``), read from this file's own scenes: a run renders
-    a copy of it (`batch.decide.check.check_job`'s `probe`)."""
+    a copy of it (`batch.decide.check_job.check_job`'s `probe`)."""
     return [samples.scene_samples(bpy.data.scenes[job.blend_scene]) for _name, job in jobs]
 
 

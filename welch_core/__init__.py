@@ -91,6 +91,7 @@ _EXPORTS = {
     "welch_from_stats": "ttest",
     "welch_ttest": "ttest",
     "Verdict": "verdict",
+    "VerdictReason": "verdict",
 }
 
 _SUBMODULES = frozenset(_EXPORTS.values()) | {"png", "sequential"}

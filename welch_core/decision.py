@@ -85,7 +85,7 @@ from .diagnostics import MIN_PASSES_FOR_NORMALITY
 from .effect import effect_sizes, relative_interval
 from .sizing import choose_claim, passes_to_bound
 from .ttest import Reason
-from .verdict import Verdict
+from .verdict import Verdict, VerdictReason
 
 __all__ = [
     "FUTILITY_LOSS",
@@ -244,7 +244,7 @@ class Outcome:
     normality_checked: bool
     min_detectable: float | None  # median over tiles of the smallest bias a tile finds with 80 % power
     identical_needed: int  # identical passes that make identical sides `equivalent (bit-identical)`
-    reason: str  # why the verdict, in a few words (machine-readable key)
+    reason: VerdictReason  # why the verdict (its key in report files)
     significant: np.ndarray = field(repr=False, compare=False, default=None)  # finest tiles outlined (_found_where)
     #: per tile size, finest first: the tiles the family of `biased` found significant themselves ((ty, tx) bool)
     found: tuple = field(repr=False, compare=False, default=())
@@ -303,7 +303,7 @@ class Outcome:
             "relevant": self.relevant,
             "normality_checked": self.normality_checked,
             "min_detectable": self.min_detectable,
-            "reason": self.reason,
+            "reason": self.reason.value,
             "resampling": None if self.resampling is None else self.resampling.to_json(),
             "budget": self.budget,
             "target_tile": self.target_tile,
@@ -375,33 +375,33 @@ def decide(scales, tests, runs, evidence: Evidence, alpha: float, tolerance: flo
 
     decided = True
     if deterministic:
-        verdict, reason = Verdict.BIASED, "deterministic"
+        verdict, reason = Verdict.BIASED, VerdictReason.DETERMINISTIC
     elif identical and n >= needed_identical:
-        verdict, reason = Verdict.EQUIVALENT, "identical"
+        verdict, reason = Verdict.EQUIVALENT, VerdictReason.IDENTICAL
     elif bounded:
-        verdict, reason = Verdict.EQUIVALENT, "bounded"
+        verdict, reason = Verdict.EQUIVALENT, VerdictReason.BOUNDED
     elif identical:
-        verdict, reason, decided = Verdict.INCONCLUSIVE, "identical_too_few", evidence.final
+        verdict, reason, decided = Verdict.INCONCLUSIVE, VerdictReason.IDENTICAL_TOO_FEW, evidence.final
     elif crossed or (evidence.p_value is not None and evidence.p_value <= alpha):
-        verdict, reason = Verdict.BIASED, "significant" if crossed else "spread"
+        verdict, reason = Verdict.BIASED, VerdictReason.SIGNIFICANT if crossed else VerdictReason.SPREAD
     elif futile and fallback is not None:
-        verdict, reason, claim_tile = Verdict.EQUIVALENT, "bounded", fallback
+        verdict, reason, claim_tile = Verdict.EQUIVALENT, VerdictReason.BOUNDED, fallback
     elif futile:
-        verdict, reason = Verdict.INCONCLUSIVE, "futile"
+        verdict, reason = Verdict.INCONCLUSIVE, VerdictReason.FUTILE
     elif not evidence.final:
-        verdict, reason, decided = Verdict.INCONCLUSIVE, "undecided", False
+        verdict, reason, decided = Verdict.INCONCLUSIVE, VerdictReason.UNDECIDED, False
     elif not any(s.n_valid for s in scales):
-        verdict, reason = Verdict.INCONCLUSIVE, "untestable"
+        verdict, reason = Verdict.INCONCLUSIVE, VerdictReason.UNTESTABLE
     elif evidence.resampling is not None and evidence.resampling.limited:
-        verdict, reason = Verdict.INCONCLUSIVE, "unreachable"
+        verdict, reason = Verdict.INCONCLUSIVE, VerdictReason.UNREACHABLE
     elif too_untested or not testable:
-        verdict, reason = Verdict.INCONCLUSIVE, "too_untested"
+        verdict, reason = Verdict.INCONCLUSIVE, VerdictReason.TOO_UNTESTED
     elif fallback is not None:
-        verdict, reason, claim_tile = Verdict.EQUIVALENT, "bounded", fallback
+        verdict, reason, claim_tile = Verdict.EQUIVALENT, VerdictReason.BOUNDED, fallback
     elif tolerance is not None:
-        verdict, reason = Verdict.INCONCLUSIVE, "beyond" if beyond else "unbounded"
+        verdict, reason = Verdict.INCONCLUSIVE, VerdictReason.BEYOND if beyond else VerdictReason.UNBOUNDED
     else:
-        verdict, reason = Verdict.NO_EVIDENCE, "nothing_found"
+        verdict, reason = Verdict.NO_EVIDENCE, VerdictReason.NOTHING_FOUND
     significant_finest = _found_where(scales, evidence.significant)
     return Outcome(
         verdict=verdict,

@@ -209,6 +209,36 @@ class PixelMoments:
             delta /= n
             mean += delta
 
+    def absorb(self, other: PixelMoments) -> None:
+        """Add the passes of `other` (another run's moments, e.g. a worker's chunk) to these, in place: `merged`'s
+        arithmetic, the same bits, a band of rows at a time on every core, with no image-sized temporaries."""
+        if self.shape != other.shape:
+            raise WelchInputError(f"pixel moments of different images: {self.shape} and {other.shape}")
+        if not other.n:
+            return
+        self._memo.clear()
+        self._conflicts.clear()
+        self._merged = None
+        n = self.n + other.n
+        if not self.n:
+            np.copyto(self.mean, other.mean)
+            np.copyto(self.m2, other.m2)
+            self.n = n
+            return
+        share, weight = other.n / n, self.n * other.n / n
+        band = max(1, BAND_ELEMENTS // (self.shape[1] * self.shape[2]))
+
+        def rows(part: slice) -> None:
+            for start in range(part.start, part.stop, band):
+                at = slice(start, min(start + band, part.stop))
+                delta = other.mean[at] - self.mean[at]
+                self.m2[at] += other.m2[at]
+                self.m2[at] += delta * delta * weight
+                self.mean[at] += delta * share
+
+        parallel.by_rows(rows, self.shape[0], band, self.mean.size)
+        self.n = n
+
     def merged(self, other: PixelMoments) -> PixelMoments:
         """The moments of both runs' passes together (neither changes)."""
         if self.shape != other.shape:

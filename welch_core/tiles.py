@@ -525,7 +525,7 @@ class TileStats:
         if summed:
             self._pixel_sum[..., : self.channels] += pixel_sum[..., : self.channels]
         if self.pixels is not None:
-            self.pixels = self.pixels.merged(pixels)
+            self.pixels.absorb(pixels)
         self._append(sums, seeds)
 
     def _append(self, sums: np.ndarray, seeds: list[int]) -> None:

@@ -577,7 +577,8 @@ def _content_seed(path: str) -> int:
 
 
 def cmd_check(args) -> int:
-    from ..decide.check import check_job_from_args, run_check
+    from ..decide.check import run_check
+    from ..decide.check_job import check_job_from_args
     from ..present.pipeline import lines
     from ..present.progress import Progress
 

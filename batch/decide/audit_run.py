@@ -39,7 +39,8 @@ from ..present import fmt
 from ..present.progress import Progress
 from . import audit as plans
 from .audit import LOBES, UNBIASED_OVERRIDES, AuditPlan, AuditSpec, Cell
-from .check import CheckRequest, check_job, run_check
+from .check import run_check
+from .check_job import CheckRequest, check_job
 
 STATE_FILE = "audit.json"
 STATE_VERSION = 1

@@ -9,18 +9,17 @@ process's group ended), and the check ends with the verdict on the passes before
 ``check.json`` next to the statistics, so an interrupted check continues with ``--resume`` exactly where it
 stopped (the boundaries are recomputed from the recorded looks).
 
+This module is the engine; what a check is (the request made into a job) is `batch.decide.check_job`, its state on
+disk `batch.decide.check_state`, its report `batch.decide.check_report`.
+
 Nothing here imports bpy.
 """
 
 from __future__ import annotations
 
 import contextlib
-import dataclasses
-import json
 import math
-import os
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 from .._siblings import welch_core as wc
@@ -28,26 +27,21 @@ from ..errors import BatchError, Undecided
 from ..jobs import protocol
 from ..jobs.distributed import Cluster, ClusterSide, cluster
 from ..jobs.job import RenderJob
-from ..jobs.options import TEST_SIDE, default
 from ..jobs.pairs import PixelPairs
-from ..jobs.samples import BUILTIN, AutoSamples, SceneSamples, auto_samples, side_settings
-from ..jobs.seeds import MAX_PASSES, parse_seeds
-from ..jobs.side import Side, probe_scenes
+from ..jobs.side import Side
 from ..present import fmt
 from ..present.progress import Progress
+from . import check_state
+from .check_job import CheckJob, CheckRequest, check_job, check_job_from_args
+from .check_report import look_comparison, report_check
 
-STATE_FILE = "check.json"
-STATE_VERSION = 2  # 2: the budget apart from the plan, and the plan's alpha reserve for a grown budget
+#: What the Blender add-on reaches through this module (`blender_addon._siblings.checking`): the request and the job
+#: (`check_job`), the engine, and the report (`check_report`).
+__all__ = ["Check", "CheckJob", "CheckRequest", "check_job", "check_job_from_args", "look_comparison", "report_check",
+           "run_check"]  # fmt: skip
 
 #: A check that ended with one of these stopped on its evidence: resuming it answers with that verdict.
 DECIDED = ("biased", "equivalent")
-
-#: The seeds of an unpaired check's test side start here, whatever the budget (the reference's start at 0): a
-#: grown budget extends both sides' seeds and they never overlap.
-UNPAIRED_SEEDS = MAX_PASSES  # --max-passes is at most this
-
-#: Passes a side when neither --max-passes nor --max-seconds is given.
-DEFAULT_MAX_PASSES = default("max_passes", "check")
 
 #: Render seconds past a time budget (--max-seconds, a suite case's `seconds`) after which the passes still
 #: rendering are stopped, their process groups ended. The looks are planned to spend the budget (`_fix_budget`),
@@ -61,79 +55,6 @@ BUDGET_MARGIN = 2.0
 #: many times the time budget: a renderer that hangs in them still ends (a pass of the floor then ends as one the
 #: budget ends, and the check with it).
 FLOOR_LIMIT = 10.0
-
-
-@dataclass(frozen=True)
-class CheckJob:
-    """A check: the two sides' render jobs (their seeds are the most either may render), the budget (passes a
-    side, or render seconds: then the pass budget is fixed from the speed of the first chunk), the verdicts'
-    alpha and tolerance, and the output folder."""
-
-    reference: RenderJob
-    test: RenderJob
-    out: str
-    max_passes: int | None = DEFAULT_MAX_PASSES
-    max_seconds: float | None = None
-    #: The fewest passes a side a time budget renders, whatever their seconds (None: none; a check whose budget
-    #: ends its first passes then ends `inconclusive`, too few to look at): a scene whose first pass builds much
-    #: (Cycles 5's volume octree) still gets a few passes.
-    min_passes: int | None = None
-    alpha: float = default("alpha", "check")
-    tolerance: float | None = default("tolerance", "check")
-    equivalence_tile: int | None = None  # claim `equivalent` at this tile size (default: sized for the budget)
-    futility: bool = True  # stop once neither claim is within the budget's reach (welch_core.decision)
-    pixel_variance: str = default("pixel_variance", "check")  # the pixel-variance test (welch_core.pixels)
-    resume: bool = False
-    #: The reference is a finished statistics file (a suite's blessed reference), not rendered: only the test
-    #: side renders, and the looks' information fractions count its passes against the reference's fixed ones.
-    fixed_reference: bool = False
-    #: Render the passes on a Dask cluster (batch.jobs.distributed): local worker processes, or a running cluster.
-    workers: int | None = None
-    scheduler: str | None = None
-    seed_offset: int = 0  # both sides' seeds shifted by it (--seed-offset): another, independent check
-    auto_samples: dict | None = None  # why --spp auto renders more than 1 sample a pass (`AutoSamples.to_json`)
-
-    def plan(self, max_passes: int, early_share: float | None = None, started: dict | None = None) -> wc.SequentialPlan:
-        """The design for `max_passes`; a resumed check keeps the early share it was started with (None: the
-        default), and one `started` (its stored plan) before the pixel-variance test existed goes on without it."""
-        early = {} if early_share is None else {"early_share": early_share}
-        pixels = "off" if started is not None and "pixel_variance" not in started else self.pixel_variance
-        return wc.SequentialPlan(
-            max_passes=max_passes,
-            alpha=self.alpha,
-            tolerance=self.tolerance,
-            equivalence_tile=self.equivalence_tile,
-            futility=self.futility,
-            pixel_variance=pixels,
-            **early,
-        )
-
-    @property
-    def paired(self) -> bool:
-        return self.reference.seeds == self.test.seeds
-
-    def state_path(self) -> Path:
-        return Path(self.out) / STATE_FILE
-
-
-def sides_identical(reference: RenderJob, test: RenderJob) -> bool:
-    """Both sides render the same scene the same way with the same seeds: every difference would be zero."""
-    fields = (
-        "blend",
-        "scene",
-        "blend_scene",
-        "resolution",
-        "device",
-        "sampling_pattern",
-        "overrides",
-        "blender",
-        "python",
-        "spp",
-        "command",
-        "command_dir",
-    )
-    same = all(getattr(reference, f) == getattr(test, f) for f in fields)
-    return same and reference.seeds == test.seeds
 
 
 class Check:
@@ -170,7 +91,7 @@ class Check:
         # clock seconds of the check's runs (resumed runs add theirs), for people: the sides render at once.
         self.side_seconds: dict[str, float] | None = {"reference": 0.0, "test": 0.0}
         self.wall_seconds = 0.0
-        self._clock: float | None = None  # since when the wall clock runs uncounted (None: not running)
+        self.clock_since: float | None = None  # since when the wall clock runs uncounted (None: not running)
         self.last_look: tuple | None = None  # (the last look, both sides' statistics then): a live view's
         self.pairs: PixelPairs | None = None  # each pixel's difference per seed (paired, `batch.jobs.pairs`)
         self.pixel_pairs: wc.PixelMoments | None = None  # their moments at the last look
@@ -178,115 +99,6 @@ class Check:
         #: kept from then on (None: not chosen yet, or the user's --equivalence-tile, which the plan holds)
         self.claim_tile: int | None = None
         self.ended_pass: str | None = None  # what the time budget ended, in a sentence (None: it ended nothing)
-
-    # -- state on disk ---------------------------------------------------------------------------------------
-
-    def _state(self) -> dict:
-        return {
-            "format": "welch-bias-check",
-            "version": STATE_VERSION,
-            "plan": dataclasses.asdict(self.plan) if self.plan is not None else None,
-            "budget": self.budget,
-            "max_seconds": self.job.max_seconds,
-            "min_passes": self.job.min_passes,
-            "reference": _side_record(self.job.reference),
-            "test": _side_record(self.job.test),
-            "render_seconds": self.render_seconds,
-            "side_seconds": self.side_seconds,
-            "wall_seconds": self.wall_seconds,
-            "claim_tile": self.claim_tile,
-            "ended_pass": self.ended_pass,
-            "looks": self.looks,
-        }
-
-    def _save_state(self) -> None:
-        if self._clock is not None:
-            now = time.monotonic()
-            self.wall_seconds, self._clock = self.wall_seconds + now - self._clock, now
-        text = json.dumps(self._state(), indent=2, allow_nan=False, default=_json_default)
-        wc.formats.atomic_write(self.job.state_path(), lambda f: f.write(text.encode()))
-
-    def _load_state(self) -> None:
-        path = self.job.state_path()
-        try:
-            state = json.loads(path.read_text())
-        except FileNotFoundError:
-            raise BatchError(f"nothing to resume: {path} does not exist") from None
-        except (OSError, ValueError) as exc:
-            raise BatchError(f"{path} is not a readable check state ({exc})") from None
-        if not isinstance(state, dict) or state.get("format") != "welch-bias-check":
-            raise BatchError(f"{path} is not a check state file")
-        if state.get("version") != STATE_VERSION:
-            raise BatchError(
-                f"{path} was written by another version of this tool (check state {state.get('version')!r}, this one "
-                f"reads {STATE_VERSION}): start the check again with another --out"
-            )
-        grown = []  # the sides whose seeds were extended (a grown budget)
-        for side in (self.reference, self.test):
-            stored_record, record = state.get(side.name), _side_record(side.job)
-            if stored_record != record:
-                if not _reseeded(stored_record, record):
-                    raise BatchError(_not_resumable(self.job.out, side.name, stored_record, record))
-                grown.append(side.name)
-        stored = None
-        if state.get("plan") is not None:  # None: stopped before a time budget became a pass budget
-            try:
-                # a check started before the early design or the pixel-variance test existed goes on without them
-                stored = wc.SequentialPlan(**{"early_share": 0.0, "pixel_variance": "off", **state["plan"]})
-            except (KeyError, TypeError, wc.WelchInputError) as exc:
-                raise BatchError(f"{path} is not a readable check state ({exc})") from None
-        budget = state.get("budget") or (stored.max_passes if stored is not None else None)
-        if stored is not None and state.get("max_seconds") is None and self.job.max_seconds is None:
-            planned = self.job.plan(stored.max_passes, stored.early_share, state["plan"])  # the budget may grow
-            if planned != stored:
-                raise BatchError(
-                    f"can't resume {self.job.out}: it was started with {_plan_difference(stored, planned)}"
-                )
-            if self.job.max_passes < budget:
-                raise BatchError(
-                    f"can't resume {self.job.out} with --max-passes {self.job.max_passes}: it has a budget of "
-                    f"{budget} passes a side, which can grow but not shrink"
-                )
-            budget = self._grown_budget(stored, budget)
-        else:
-            planned = (
-                self.job.plan(stored.max_passes, stored.early_share, state["plan"]) if stored is not None else None
-            )
-            floor = state.get("min_passes") != self.job.min_passes and self.job.max_seconds is not None
-            if planned != stored or state.get("max_seconds") != self.job.max_seconds or grown or floor:
-                raise BatchError(
-                    f"can't resume {self.job.out}: it was started with another budget, alpha or tolerance"
-                    + (" (the budget of a --max-seconds check does not grow: start it with --max-passes)"
-                       if state.get("max_seconds") is not None and self.job.max_seconds is None else "")
-                )  # fmt: skip
-        self.budget = budget
-        self.plan = stored
-        self.looks = list(state.get("looks", []))
-        self.render_seconds = float(state.get("render_seconds", 0.0))
-        sides = state.get("side_seconds")
-        known = isinstance(sides, dict) and all(isinstance(sides.get(k), (int, float)) for k in ("reference", "test"))
-        self.side_seconds = {k: float(sides[k]) for k in ("reference", "test")} if known else None
-        self.wall_seconds = float(state.get("wall_seconds", 0.0))
-        claim = state.get("claim_tile")
-        if claim is not None and (isinstance(claim, bool) or not isinstance(claim, int) or claim < 1):
-            raise BatchError(f"{path} is not a readable check state (claim_tile {claim!r})")
-        self.claim_tile = claim
-        self.ended_pass = state.get("ended_pass")
-
-    def _grown_budget(self, plan: wc.SequentialPlan, budget: int) -> int:
-        """The budget a resumed check gets from --max-passes: the last look of the schedule it fits (the looks past
-        the plan's last follow from the plan alone, not from the budget asked for)."""
-        asked = self.job.max_passes
-        if asked == budget:
-            return budget
-        fits = wc.look_schedule(plan.max_passes, budget=asked)[-1]
-        if fits <= budget:
-            after = wc.look_schedule(plan.max_passes, budget=10 * budget + 10)
-            following = next(n for n in after if n > budget)
-            raise BatchError(
-                f"--max-passes {asked} adds no look to {self.job.out}: its next look is at {following} passes a side"
-            )
-        return fits
 
     # -- the sides -------------------------------------------------------------------------------------------
 
@@ -369,7 +181,7 @@ class Check:
         whose = f"the {waiting[0].name} side's pass" if len(waiting) == 1 else "the passes of both sides"
         self.ended_pass = (f"the time budget ({budget}) ended {whose} still rendering at {fmt.duration(spent)} of "
                            "render seconds")  # fmt: skip
-        self._save_state()
+        check_state.save(self)
 
     def _fraction(self, passes: int) -> float:
         fixed = self.reference.passes if self.job.fixed_reference else None
@@ -410,22 +222,22 @@ class Check:
         state, as an interrupt does."""
         Path(self.job.out).mkdir(parents=True, exist_ok=True)
         if self.job.resume:
-            self._load_state()
+            check_state.resume(self)
         elif self.job.reference.pass_images is not None:
             PixelPairs.clear(self.job.out)  # a new check: nothing of an earlier one in this folder counts
-        self._clock = time.monotonic()
+        self.clock_since = time.monotonic()
         if self.job.reference.pass_images is not None:
             self.pairs = PixelPairs(self.job.out)
-        self._save_state()  # before anything renders: a check stopped at once can still be resumed
+        check_state.save(self)  # before anything renders: a check stopped at once can still be resumed
         try:
             self._start()
             result = yield from self._loop()
         except BaseException:  # an interrupt, an error, or the generator closed
             self._stop()
-            self._save_state()
+            check_state.save(self)
             raise
         self._finish()
-        self._save_state()
+        check_state.save(self)
         return result
 
     def _loop(self):
@@ -441,7 +253,9 @@ class Check:
             ref, test = self._load()
             n = self.looks[-1]["passes"]
             ref, test = (ref if self.job.fixed_reference else self._at(ref, n)), self._at(test, n)
-            final = last.get("reason") != "futile"  # a futility stop is made again at the look where it was made
+            final = (
+                last.get("reason") != wc.VerdictReason.FUTILE
+            )  # a futility stop is made again at the look where it was made
             return self._look(ref, test, fractions, final), ref, test
         deadline = None if self.job.max_seconds is None else self.job.max_seconds
         if self.plan is None:
@@ -470,8 +284,8 @@ class Check:
             look = self._look(ref, test, fractions, index == len(schedule) - 1)
             if self.claim_tile is None and look.outcome.target_tile is not None:
                 self.claim_tile = look.outcome.target_tile  # sized at this look: every later look keeps it
-            self.looks.append(_look_record(look, self.render_seconds))
-            self._save_state()
+            self.looks.append(check_state.look_record(look, self.render_seconds))
+            check_state.save(self)
             bound = look.ruled_out if math.isfinite(look.ruled_out) else None
             verdict = look.verdict.text if look.verdict is not None else None
             self.progress.emit(
@@ -505,8 +319,8 @@ class Check:
         # of their own.
         fractions.append(self._fraction(n))
         look = self._look(ref, test, fractions, True)
-        self.looks.append(_look_record(look, self.render_seconds))
-        self._save_state()
+        self.looks.append(check_state.look_record(look, self.render_seconds))
+        check_state.save(self)
         self.last_look = look, ref, test
         return look, ref, test
 
@@ -523,95 +337,6 @@ class Check:
         return run if run.n <= n else run.subset(range(n))
 
 
-def _plan_difference(stored: wc.SequentialPlan, planned: wc.SequentialPlan) -> str:
-    """What differs between the design a check was started with and the one asked for, named by option."""
-
-    def shown(name: str, value) -> str:
-        if name == "futility":
-            return "the futility stop" if value else "--no-futility"
-        if name == "equivalence_tile":
-            return "the claim sized for the budget" if value is None else f"--equivalence-tile {value}"
-        if name == "tolerance":
-            return "--tolerance off" if value is None else f"--tolerance {100 * value:g}%"
-        if name == "pixel_variance":
-            return f"--pixel-variance {value}"
-        return f"--{name} {value:g}"
-
-    names = ("alpha", "tolerance", "equivalence_tile", "futility", "pixel_variance")
-    differ = [n for n in names if getattr(stored, n) != getattr(planned, n)]
-    return "; ".join(f"{shown(n, getattr(stored, n))}, not {shown(n, getattr(planned, n))}" for n in differ) or (
-        "another design"
-    )
-
-
-def _side_record(job: RenderJob) -> list[str]:
-    """What must stay the same for a side to be resumed: its job's arguments, its statistics file by its name in
-    the check's folder (the folder may be given another way, or moved)."""
-    return job.replace(resume=False, out=Path(job.out).name, pass_images=None).to_argv()
-
-
-def _not_resumable(out: str, name: str, stored: list[str] | None, record: list[str]) -> str:
-    """Why side `name` of the check in `out` can't be resumed with `record`: its seeds start elsewhere (another
-    --seed-offset), or other arguments."""
-    first = [_first_seed(r) for r in (stored, record)]
-    if None not in first and first[0] != first[1]:
-        why = "another --seed-offset" if name == "reference" else "another --seed-offset, or paired and unpaired"
-        return f"can't resume {out}: its {name} side was started on seeds from {first[0]}, not {first[1]} ({why})"
-    return f"can't resume {out}: the {name} side was started with other arguments"
-
-
-def _first_seed(record: list[str] | None) -> int | None:
-    """The first seed of a side's record (its arguments), or None."""
-    if not isinstance(record, list) or "--seeds" not in record[:-1]:
-        return None
-    try:
-        return parse_seeds(record[record.index("--seeds") + 1])[0]
-    except ValueError:
-        return None
-
-
-def _reseeded(stored: list[str] | None, record: list[str]) -> bool:
-    """Whether side `record` is side `stored` with its seeds' list made longer or shorter at the end (another
-    budget)."""
-    if not isinstance(stored, list) or len(stored) != len(record) or "--seeds" not in record:
-        return False
-    at = record.index("--seeds") + 1
-    if stored[:at] != record[:at] or stored[at + 1 :] != record[at + 1 :]:
-        return False
-    try:
-        before, after = parse_seeds(stored[at]), parse_seeds(record[at])
-    except ValueError:
-        return False
-    common = min(len(before), len(after))
-    return before[:common] == after[:common]
-
-
-def _look_record(look: wc.Look, seconds: float) -> dict:
-    outcome = look.outcome
-    record = {
-        "passes": look.passes,
-        "fraction": look.fraction,
-        "verdict": look.verdict.label if look.verdict is not None else None,
-        "p_value": look.p_value,
-        "threshold": look.threshold,
-        "crossed": look.crossed,
-        "ruled_out": look.ruled_out,
-        "ruled_out_tile": look.ruled_out_tile,
-        "whole_image": outcome.whole_image.to_json() if outcome.whole_image is not None else None,
-        "uncovered": look.uncovered,
-        "seconds": seconds,
-        "budget": outcome.budget,
-        "reason": outcome.reason,
-        "claim_tile": outcome.claim_tile,
-        "promise": outcome.promise,
-    }
-    return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in record.items()}
-
-
-def _json_default(value):
-    raise TypeError(f"not JSON: {type(value).__name__}")
-
-
 def run_check(job: CheckJob, progress, where: Cluster | None = None) -> tuple[wc.Verdict, dict]:
     """Run `job` and write its report into ``job.out``: the verdict and the report's content. The verdict and its
     numbers are the last look's; the map and the tiles are the final passes' statistics (descriptive). The passes
@@ -625,238 +350,3 @@ def run_check(job: CheckJob, progress, where: Cluster | None = None) -> tuple[wc
         check = Check(job, progress, place)
         look, ref, test = check.run()
     return look.outcome.verdict, report_check(check, look, ref, test)[0]
-
-
-def report_check(check: Check, look: wc.Look, ref: wc.TileStats, test: wc.TileStats):
-    """Write the report of a check's final look into its folder: (report.json's content, its
-    `batch.present.pipeline.Assessment`: the comparison of the final passes that the map shows, the layers').
-    `run_check` and the Blender add-on both end a check here."""
-    from ..present.pipeline import assess, write
-    from ..present.summary import check_record
-
-    job = check.job
-    layers = (wc.load_layers(job.reference.out, pixels=False), wc.load_layers(job.test.out, pixels=False))
-    early = (check.plan.early, wc.looks.EARLY_PASSES)
-    durations = {"wall": check.wall_seconds, "sides": check.side_seconds}
-    record = check_record(job, check.looks, check.plan.max_passes, look, early, check.ended_pass, durations)
-    comparison = look_comparison(job, ref, test, check.pixel_pairs, check.plan.pixel_variance)
-    assessment = assess(comparison, ref, test, outcome=look.outcome, check=record, layers=layers)
-    return write(job.out, assessment, ref, test), assessment
-
-
-def look_comparison(job: CheckJob, ref, test, pairs=None, pixel_variance: str | None = None) -> wc.Comparison:
-    """The fixed-design comparison of a look's passes (`pairs`: their pixels' paired differences, where kept;
-    `pixel_variance`: the plan's, default the job's): what its map draws (descriptive; the look's own outcome is
-    the verdict)."""
-    pixels = pixel_variance or job.pixel_variance
-    return wc.compare(ref, test, job.alpha, tolerance=job.tolerance, pixel_variance=pixels, pairs=pairs)
-
-
-#: Seeds a side may use under a time budget (the pass budget is fixed once the speed is known).
-MAX_SEEDS_FOR_SECONDS = 100_000
-
-
-def _absolute(path: str | None) -> str | None:
-    """A scene file's path as its sides record it: absolute, so a check resumed from another folder is the same."""
-    return None if path is None else os.path.abspath(path)
-
-
-@dataclass(frozen=True)
-class CheckRequest:
-    """What a check is asked for, as the command line (``check``'s arguments: `from_args`) and the Blender add-on
-    give it, values already checked; `check_job` makes the check of it. The defaults are the command line's
-    (`batch.jobs.options`)."""
-
-    out: str
-    blend: str | None = None
-    scene: str | None = None
-    blend_scene: str | None = None
-    test_blend: str | None = None
-    test_blend_scene: str | None = None
-    overrides: tuple[str, ...] = ()
-    spp: int | None = default("spp", "check")  # None: auto (`batch.jobs.samples.auto_samples`)
-    tile: int = default("tile", "check")
-    resolution: tuple[int, int] | None = None
-    device: str = default("device", "check")
-    sampling_pattern: str | None = None
-    lobes: tuple[str, ...] = default("lobes", "check")
-    test_spp: int | None = None
-    test_device: str | None = None
-    test_sampling_pattern: str | None = None
-    blender: str | None = None
-    python: str | None = None
-    test_blender: str | None = None
-    test_python: str | None = None
-    pass_command: str | None = None
-    test_command: str | None = None
-    command_dir: str | None = None
-    max_passes: int | None = None  # None: DEFAULT_MAX_PASSES, unless max_seconds is given
-    max_seconds: float | None = None
-    min_passes: int | None = None
-    alpha: float = default("alpha", "check")
-    tolerance: float | None = default("tolerance", "check")
-    equivalence_tile: int | None = None
-    futility: bool = True
-    pixel_variance: str = default("pixel_variance", "check")
-    unpaired: bool = False
-    seed_offset: int = default("seed_offset", "check")
-    resume: bool = False
-    workers: int | None = None
-    scheduler: str | None = None
-
-    @classmethod
-    def from_args(cls, args) -> CheckRequest:
-        """The request of ``check``'s parsed command line."""
-        return cls(**{f.name: getattr(args, f.name) for f in dataclasses.fields(cls)})
-
-
-def check_job_from_args(args) -> CheckJob:
-    """The check the command line describes (`check_job` of its `CheckRequest`)."""
-    return check_job(CheckRequest.from_args(args))
-
-
-def _check_claim_tile(claim: int | None, tile: int, resolution) -> None:
-    """Refuse an --equivalence-tile the check will not test (its tested sizes: the tile times 1, 2, 4, ... up to
-    the first that covers the image, `welch_core.comparison.scale_factors`) before anything renders."""
-    if claim is None:
-        return
-    factor = claim // tile
-    sizes = ", ".join(str(tile << k) for k in range(3))
-    if claim % tile or factor & (factor - 1) or factor < 1:
-        raise BatchError(f"--equivalence-tile {claim} is not a tested tile size: the tile ({tile}) times a power of "
-                         f"two ({sizes}, ...)")  # fmt: skip
-    if resolution and factor > 1 and claim >= 2 * max(resolution):
-        raise BatchError(f"--equivalence-tile {claim} is larger than the image ({resolution[0]}x{resolution[1]})")
-
-
-def check_job(request: CheckRequest, probe=None) -> CheckJob:
-    """The check `request` describes, refused in one line where it can't work, before anything renders. `probe`
-    reads what scene files ask of the passes for ``--spp auto`` (default `batch.jobs.side.probe_scenes`: a process
-    of each side's build opens its file; the add-on reads its own scenes)."""
-    args = request
-    if args.blend is not None and args.scene is not None:
-        raise BatchError(f"give a .blend file or a built-in scene, not both ({args.blend}, {args.scene!r})")
-    if args.test_command and not args.pass_command:
-        raise BatchError("--test-command needs --command: the reference side's passes are rendered the same way")
-    if args.blend is None and args.scene is None and not args.pass_command:
-        raise BatchError("no scene to check: give a .blend file or a built-in scene (--scene), or --command")
-    for option, path in (("SCENE.blend", args.blend), ("--test-blend", args.test_blend)):
-        if path is not None and not Path(path).is_file():
-            raise BatchError(f"{option} {path}: no such file")
-    max_passes = None if args.max_seconds is not None else (args.max_passes or DEFAULT_MAX_PASSES)
-    if args.min_passes is not None and args.max_seconds is None:
-        raise BatchError("--min-passes is the floor of a time budget: give --max-seconds too (without it every pass "
-                         "of --max-passes renders)")  # fmt: skip
-    if args.min_passes is not None and args.max_passes is not None and args.min_passes > args.max_passes:
-        raise BatchError(f"--min-passes {args.min_passes} is more than --max-passes {args.max_passes}")
-    _check_claim_tile(args.equivalence_tile, args.tile, args.resolution)
-    # A time budget renders at most --max-passes where given too (whichever ends first): its pass budget, fixed from
-    # the speed of the first chunk, is at most the seeds a side has.
-    count = args.max_passes or max_passes or MAX_SEEDS_FOR_SECONDS
-    if (args.blender and args.python) or (args.test_blender and args.test_python):
-        raise BatchError("give a side's build as a Blender binary or as a Python with bpy, not both (--blender or "
-                         "--python; --test-blender or --test-python)")  # fmt: skip
-    # The test side's build: its own, else the reference's (a binary given to one side is not the other's Python).
-    test_blender = args.test_blender or (None if args.test_python else args.blender)
-    test_python = args.test_python or (None if args.test_blender else args.python)
-    same_build = test_blender == args.blender and test_python == args.python and (
-        args.test_command or args.pass_command
-    ) == args.pass_command  # fmt: skip
-    paired = same_build and not args.unpaired
-    offset = args.seed_offset
-    ref_seeds = range(offset, offset + count)
-    test_seeds = ref_seeds if paired else range(UNPAIRED_SEEDS + offset, UNPAIRED_SEEDS + offset + count)
-    out = Path(args.out)
-    common = {
-        "spp": args.spp or 1,  # auto: resolved below
-        "tile": args.tile,
-        "resolution": tuple(args.resolution) if args.resolution else None,
-        "device": args.device,
-        "sampling_pattern": args.sampling_pattern,
-        "resume": args.resume,
-        "checkpoint_every": MAX_PASSES,  # saved after every chunk anyway (and the same whatever the budget)
-        "lobes": args.lobes,
-        "command_dir": str(Path(args.command_dir or ".").resolve()) if args.pass_command else None,
-    }
-    reference = RenderJob(
-        out=str(out / "reference.npz"),
-        seeds=tuple(ref_seeds),
-        blend=_absolute(args.blend),
-        scene=args.scene,
-        blend_scene=args.blend_scene,
-        blender=args.blender,
-        python=args.python,
-        command=args.pass_command,
-        **common,
-    )
-    own = {dest: value for dest in TEST_SIDE if (value := getattr(args, f"test_{dest}", None)) is not None}
-    test = RenderJob(
-        out=str(out / "test.npz"),
-        seeds=tuple(test_seeds),
-        blend=_absolute(args.test_blend or args.blend),
-        scene=None if args.test_blend else args.scene,
-        blend_scene=args.test_blend_scene or (None if args.test_blend else args.blend_scene),
-        blender=test_blender,
-        python=test_python,
-        overrides=tuple(args.overrides),
-        command=args.test_command or args.pass_command,
-        **(common | own),
-    )
-    if sides_identical(reference, test):
-        raise BatchError(
-            "the two sides are identical by construction (same scene, build, settings and seeds): every difference "
-            "would be zero; give --set, --test-blend, --test-blender, --test-command or a --test- setting such as "
-            "--test-sampling-pattern, or --unpaired for an A/A check"
-        )
-    if not args.resume:
-        for job in (reference, test):
-            if Path(job.out).exists():
-                raise BatchError(f"{job.out} already exists: pass --resume to continue the check, or another --out")
-    auto = AutoSamples(args.spp) if args.spp is not None else _auto_samples(reference, test, probe)
-    reference = reference.replace(spp=auto.spp)
-    test = test.replace(spp=own.get("spp", auto.spp))
-    if paired and args.pixel_variance != "off" and args.workers is None and args.scheduler is None:
-        # Each side also writes its passes' images: the pixel test of paired runs needs each pixel's difference.
-        reference = reference.replace(pass_images=PixelPairs.folder(out, "reference"))
-        test = test.replace(pass_images=PixelPairs.folder(out, "test"))
-    return CheckJob(
-        reference=reference,
-        test=test,
-        out=str(out),
-        max_passes=max_passes,
-        max_seconds=args.max_seconds,
-        min_passes=args.min_passes,
-        alpha=args.alpha,
-        tolerance=args.tolerance,
-        equivalence_tile=args.equivalence_tile,
-        futility=args.futility,
-        pixel_variance=args.pixel_variance,
-        resume=args.resume,
-        workers=args.workers,
-        scheduler=args.scheduler,
-        seed_offset=offset,
-        auto_samples=auto.to_json(),
-    )
-
-
-def _auto_samples(reference: RenderJob, test: RenderJob, probe=None) -> AutoSamples:
-    """``--spp auto`` (`batch.jobs.samples.auto_samples`): what each side's scene asks of the passes (a built-in
-    scene's is known; each scene file is read once, by `probe`), with the test side's pattern and overrides.
-    Another renderer's passes (``--command``) take 1 sample."""
-    if reference.command is not None:
-        return AutoSamples(1)
-    files = {}  # each scene file by what reads it: the file, its scene and the build
-    for name, job in (("reference", reference), ("test", test)):
-        if job.scene is None:
-            read = job.replace(seeds=(0,), spp=1, overrides=(), sampling_pattern=None, lobes=(), pass_images=None)
-            files.setdefault((job.blend, job.blend_scene, job.blender, job.python), (name, read))
-    found = dict(zip(files, (probe or probe_scenes)(list(files.values())), strict=True))
-    scenes: list[SceneSamples] = [
-        BUILTIN if job.scene is not None else found[(job.blend, job.blend_scene, job.blender, job.python)]
-        for job in (reference, test)
-    ]
-    settings = [
-        side_settings(scene, job.sampling_pattern, job.overrides)
-        for scene, job in zip(scenes, (reference, test), strict=True)
-    ]
-    return auto_samples(*scenes, *settings)

@@ -70,7 +70,8 @@ from ..jobs.distributed import cluster as side_cluster
 from ..jobs.job import BUILTIN_SCENES, NO_GPU_MESSAGE, RenderJob, builtin_scene_id
 from ..jobs.launch import blender_version, bpy_version, no_bpy
 from ..jobs.protocol import FAILING, verdict_status
-from .check import CheckJob, run_check
+from .check import run_check
+from .check_job import CheckJob
 
 #: The suite that ships with the tool: one minimal scene per Cycles feature, and its references.
 BUILTIN = Path(__file__).with_name("suites") / "builtin.toml"

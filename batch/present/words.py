@@ -10,7 +10,10 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from .._siblings import welch_core as wc
 from . import fmt
+
+Why = wc.VerdictReason  # why a verdict is what it is: each has its words below
 
 
 def where(d: dict[str, Any], outcome: dict[str, Any] | None = None) -> str:
@@ -125,17 +128,17 @@ def sentence(outcome: dict[str, Any]) -> str:
     text, reason = outcome["verdict_text"] if outcome.get("decided", True) else "so far", outcome["reason"]
     whole = whole_image(outcome)
     n = min(outcome["n_ref"], outcome["n_test"])
-    if reason == "deterministic":
+    if reason == Why.DETERMINISTIC:
         return f"{text}: {deterministic(outcome['deterministic'], outcome['test'])}"
-    if reason == "identical":
+    if reason == Why.IDENTICAL:
         return f"{text}: all {n} passes are identical on both sides; {_identical_share(outcome)}"
-    if reason == "identical_too_few":
+    if reason == Why.IDENTICAL_TOO_FEW:
         return (
             f"{text}: all {n} passes are identical on both sides so far; {outcome['identical_needed']} identical "
             "passes would rule out a change that alters one pass in ten"
         )
     parts = []
-    if reason == "bounded":
+    if reason == Why.BOUNDED:
         claim = claim_scale(outcome)
         parts.append(f"{text} within ±{_tolerance(outcome)} in {every_tile(claim)} ({_ruled_out_there(claim)})")
         target = scale_of(outcome, outcome.get("target_tile"))
@@ -144,12 +147,12 @@ def sentence(outcome: dict[str, Any]) -> str:
         finer = finer_needs(outcome, claim["tile"])
         if finer:
             parts.append(finer)
-    elif reason == "significant":
+    elif reason == Why.SIGNIFICANT:
         parts += _biased_claim(outcome, text, whole)
         whole = None
-    elif reason == "spread":
+    elif reason == Why.SPREAD:
         parts.append(f"{text}: a difference spread over many tiles (too many small p-values)")
-    elif reason == "futile":
+    elif reason == Why.FUTILE:
         claim = claim_scale(outcome)
         need = claim["passes_needed"]
         reach = (
@@ -163,7 +166,7 @@ def sentence(outcome: dict[str, Any]) -> str:
             "the bias the budget detects there"
         )
         parts.append(f"bias ruled out per tile size: {ruled_out_list(outcome)}")
-    elif reason in ("unbounded", "beyond"):
+    elif reason in (Why.UNBOUNDED, Why.BEYOND):
         claim = claim_scale(outcome)
         tile = claim["tile"]
         coarser = next((s for s in outcome["scales"] if s["tile"] > tile and s["ruled_out"] is not None
@@ -171,7 +174,7 @@ def sentence(outcome: dict[str, Any]) -> str:
         first = f"{text}: not shown within ±{_tolerance(outcome)} in {every_tile(claim)}"
         if coarser is not None:
             first = f"{text}: within ±{_tolerance(outcome)} in {every_tile(coarser)}; {tile}x{tile} not bounded"
-        if reason == "beyond":
+        if reason == Why.BEYOND:
             first += " (a finer tile found biased differs by more than that)"
         parts.append(first)
         if n < outcome["identical_needed"]:
@@ -182,17 +185,17 @@ def sentence(outcome: dict[str, Any]) -> str:
                 open_ += f" ({box(claim['unbounded_box'])})"
             parts.append(open_ + _passes_to_bound(claim))
         parts.append(f"bias ruled out per tile size: {ruled_out_list(outcome)}")
-    elif reason == "undecided":
+    elif reason == Why.UNDECIDED:
         parts.append(f"{text}: undecided after {n} passes a side")
-    elif reason == "unreachable":
+    elif reason == Why.UNREACHABLE:
         test = outcome["resampling"]
         parts.append(
             f"{text}: with {outcome['n_ref']} v {outcome['n_test']} passes no bias can be shown (the permutation test "
             f"that sides of different pass counts need can't give a p-value below {fmt.p_value(test['smallest'])})"
         )
-    elif reason == "untestable":
+    elif reason == Why.UNTESTABLE:
         parts.append(f"{text}: no tile can be tested (too few passes, constant images or non-finite values)")
-    elif reason == "too_untested":
+    elif reason == Why.TOO_UNTESTED:
         region = box(outcome["untestable_box"])
         parts.append(
             f"{text}: the Welch samples of {outcome['untestable']} tiles ({region}) are clearly not normal at every "
@@ -342,7 +345,7 @@ def next_step(outcome: dict[str, Any], check: dict[str, Any] | None = None, hidd
     than the passes have (`sample_hidden`)."""
     reason = outcome["reason"]
     timed = bool(check and check.get("max_seconds"))  # its budget can't grow on resume: a new check is the way on
-    if hidden and reason in ("bounded", "identical", "identical_too_few"):
+    if hidden and reason in (Why.BOUNDED, Why.IDENTICAL, Why.IDENTICAL_TOO_FEW):
         names = ", ".join(dict.fromkeys(h.split(":")[0] for h in hidden))
         if any(_ACTING in h for h in hidden):
             return (
@@ -365,7 +368,7 @@ def next_step(outcome: dict[str, Any], check: dict[str, Any] | None = None, hidd
         else "render more passes into both runs (the same render commands with --resume and more seeds), then "
         "compare again, or let `python -m batch check` render until it decides"
     )
-    if reason in ("significant", "spread", "deterministic"):
+    if reason in (Why.SIGNIFICANT, Why.SPREAD, Why.DETERMINISTIC):
         top = outcome["most_significant"]
         located = f" The most significant difference is in {where(top, outcome)}." if top else ""
         return (
@@ -373,7 +376,7 @@ def next_step(outcome: dict[str, Any], check: dict[str, Any] | None = None, hidd
             "tiles outlined in the map; a difference you expected (a setting changed on purpose) confirms the test "
             "works."
         )
-    if reason == "bounded":
+    if reason == Why.BOUNDED:
         claim = claim_scale(outcome)
         done = f"Nothing to do at this size: {every_tile(claim)} is within ±{_tolerance(outcome)} of the reference."
         finer = [x for x in outcome["scales"] if x["tile"] < claim["tile"] and x["projected"] is not None]
@@ -384,13 +387,13 @@ def next_step(outcome: dict[str, Any], check: dict[str, Any] | None = None, hidd
                 f"{size['tile']} and --max-passes {size['projected']} (about that many passes a side), another --out."
             )
         return done
-    if reason == "identical":
+    if reason == Why.IDENTICAL:
         return "Nothing to do: the change leaves every pass as it was."
-    if reason == "identical_too_few":
+    if reason == Why.IDENTICAL_TOO_FEW:
         return (
             f"Render at least {outcome['identical_needed']} passes a side to rule out a rarely visible change: {more}."
         )
-    if reason in ("futile", "unbounded", "beyond"):
+    if reason in (Why.FUTILE, Why.UNBOUNDED, Why.BEYOND):
         claim = claim_scale(outcome)
         coarser = [x for x in outcome["scales"] if x["tile"] > claim["tile"] and x["projected"] is not None]
         n = min(outcome["n_ref"], outcome["n_test"])
@@ -416,26 +419,26 @@ def next_step(outcome: dict[str, Any], check: dict[str, Any] | None = None, hidd
                 f"; or claim a coarser size: --equivalence-tile {size['tile']} (about {size['projected']} passes a "
                 "side)"
             )
-        if reason == "futile":
+        if reason == Why.FUTILE:
             return (
                 f"The check stopped early: {grow}. The stop gave up at most {_loss(outcome)} of the power to find a "
                 "bias the budget detects; --no-futility renders the whole budget."
             )
         return f"Not decided at this size: {grow}."
-    if reason == "unreachable":
+    if reason == Why.UNREACHABLE:
         return (
             "Too few passes on the smaller side for a test that holds with skewed tile sums: render more passes there "
             "(the same render command with --resume and more seeds), then compare again."
         )
-    if reason == "untestable":
+    if reason == Why.UNTESTABLE:
         return f"No tile could be tested (too few passes, or constant images): {more}."
-    if reason == "too_untested":
+    if reason == Why.TOO_UNTESTED:
         return (
             f"The Welch samples of {box(outcome['untestable_box'])} are clearly not normal (fireflies or caustics) at "
             "every tile size, so that part can't be tested yet: more samples per pass (--spp) make each pass's tile "
             f"sums more normal; or {more}."
         )
-    if reason == "undecided":
+    if reason == Why.UNDECIDED:
         return f"Not decided yet: {more}."
     detectable = outcome["min_detectable"]
     smaller = f"a bias below {fmt.magnitude(detectable)} per tile" if detectable is not None else "a small bias"

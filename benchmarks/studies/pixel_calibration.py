@@ -73,7 +73,7 @@ PAIRED_FIXED = (2, 3, 4, 8)
 #: Very unequal counts (reference, test) and the pools they are drawn from.
 UNEQUAL, UNEQUAL_POOLS = ((256, 4), (256, 8), (4, 256)), ("corner_glass", "glossy")
 #: Scenes rendered in runs of consecutive seeds (`consecutive_rows`), at this resolution, and the test side's first
-#: seed (`batch.decide.check.UNPAIRED_SEEDS`).
+#: seed (`batch.decide.check_job.UNPAIRED_SEEDS`).
 CONSECUTIVE, CONSECUTIVE_RESOLUTION, TEST_SEEDS = ("corner", "corner_glass"), 32, 1_000_000
 #: The pools, tolerances, passes and budget of the `equivalent` rows.
 EQUIVALENCE_POOLS = ("corner", "corner_glass", "glossy", "textured")

@@ -34,7 +34,7 @@ import numpy as np
 
 import welch_core as wc
 from batch.blender.scenes import WALL_COLOR_PATH
-from batch.decide.check import DEFAULT_MAX_PASSES
+from batch.decide.check_job import DEFAULT_MAX_PASSES
 from batch.jobs.job import BUILTIN_SCENES
 
 from ..common.cache import study_arguments

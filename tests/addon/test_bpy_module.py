@@ -14,7 +14,7 @@ bpy = pytest.importorskip("bpy")
 
 import blender_addon  # noqa: E402
 import welch_core  # noqa: E402
-from batch.decide.check import UNPAIRED_SEEDS  # noqa: E402
+from batch.decide.check_job import UNPAIRED_SEEDS  # noqa: E402
 from blender_addon import checks, results, runner, session, ui  # noqa: E402
 from blender_addon.state import RunFolder  # noqa: E402
 from blender_addon.state import current as state  # noqa: E402
@@ -194,7 +194,7 @@ def test_the_panel_asks_for_the_check_the_command_line_describes(scene, tmp_path
     """The panel's defaults are the check's (`CheckRequest`), and its request makes the very job that the command
     line's arguments for the same settings make."""
     from batch.cli.commands import build_parser
-    from batch.decide.check import CheckRequest, check_job, check_job_from_args
+    from batch.decide.check_job import CheckRequest, check_job, check_job_from_args
 
     settings = scene.welch_bias
     declared = CheckRequest(out="")
@@ -219,7 +219,7 @@ def test_the_panel_asks_for_the_check_the_command_line_describes(scene, tmp_path
 def test_the_panels_auto_samples_read_its_own_scenes(scene, tmp_path):
     """Samples per Pass 0 is --spp auto: the sides' scenes are read from this file, not by a render process; an
     override of path guiding renders the scene's own samples."""
-    from batch.decide.check import check_job
+    from batch.decide.check_job import check_job
 
     settings = scene.welch_bias
     blend = tmp_path / "scene.blend"
@@ -425,7 +425,7 @@ def test_panel_with_overrides_and_an_error(scene):
 def hanging_run(tmp_path) -> runner.CheckRun:
     """A check whose render processes start and never render (a Blender that answers --version and waits)."""
     from batch.cli.commands import build_parser
-    from batch.decide.check import check_job_from_args
+    from batch.decide.check_job import check_job_from_args
 
     fake = tmp_path / "blender"
     fake.write_text("#!/bin/sh\nif [ \"$1\" = --version ]; then echo 'Blender 4.5.4 LTS'; exit 0; fi\nsleep 60\n")

@@ -10,7 +10,7 @@ import time
 import pytest
 
 from batch.cli.commands import build_parser
-from batch.decide.check import check_job_from_args
+from batch.decide.check_job import check_job_from_args
 from batch.jobs import protocol
 from blender_addon import runner
 

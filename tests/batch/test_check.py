@@ -162,7 +162,7 @@ def test_ctrl_c_keeps_everything_resume_continues_and_the_budget_grows(tmp_path)
 
 
 def test_tolerance_off_means_no_equivalent_verdict():
-    from batch.decide.check import check_job_from_args
+    from batch.decide.check_job import check_job_from_args
 
     args = cli.build_parser().parse_args(["check", "--scene", "corner", "--set", "cycles.film_exposure=1.01",
                                           "--tolerance", "off", "--out", "x"])  # fmt: skip
@@ -186,7 +186,7 @@ def test_an_equivalence_tile_the_check_does_not_test_is_refused_before_it_render
     out = tmp_path / "c"
     assert cli.main(["check", "--scene", "corner", "--unpaired", *given, "--out", str(out)]) == Exit.USAGE
     assert capsys.readouterr().err == f"error: {message}\n" and not out.exists()
-    from batch.decide.check import check_job_from_args
+    from batch.decide.check_job import check_job_from_args
 
     allowed = [
         "check",

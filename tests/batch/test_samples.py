@@ -10,7 +10,7 @@ import pytest
 
 import welch_core as wc
 from batch.cli.commands import build_parser
-from batch.decide.check import CheckRequest, check_job
+from batch.decide.check_job import CheckRequest, check_job
 from batch.jobs import samples
 from batch.jobs.samples import BUILTIN, SceneSamples, acting, auto_samples, differing, side_settings
 from batch.present import summary, words

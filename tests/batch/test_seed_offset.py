@@ -7,7 +7,9 @@ import pytest
 
 import welch_core as wc
 from batch.cli.commands import build_parser
-from batch.decide.check import UNPAIRED_SEEDS, Check, check_job_from_args
+from batch.decide import check_state
+from batch.decide.check import Check
+from batch.decide.check_job import UNPAIRED_SEEDS, check_job_from_args
 from batch.errors import BatchError
 from batch.present import summary
 from batch.present.progress import Progress
@@ -45,15 +47,15 @@ def test_the_largest_offset_keeps_every_seed_a_cycles_seed(tmp_path):
 def test_a_check_resumes_only_with_the_offset_it_started_with(tmp_path):
     first = check_job_from_args(check_args(tmp_path, "--set", "cycles.max_bounces=4", "--seed-offset", 5))
     (tmp_path / "c").mkdir()
-    Check(first, Progress(0, live=False))._save_state()
+    check_state.save(Check(first, Progress(0, live=False)))
     again = check_job_from_args(check_args(tmp_path, "--set", "cycles.max_bounces=4", "--seed-offset", 6, "--resume"))
     with pytest.raises(BatchError) as error:
-        Check(again, Progress(0, live=False))._load_state()
+        check_state.resume(Check(again, Progress(0, live=False)))
     assert str(error.value) == (
         f"can't resume {tmp_path / 'c'}: its reference side was started on seeds from 5, not 6 (another --seed-offset)"
     )
     same = check_job_from_args(check_args(tmp_path, "--set", "cycles.max_bounces=4", "--seed-offset", 5, "--resume"))
-    Check(same, Progress(0, live=False))._load_state()  # the same offset goes on
+    check_state.resume(Check(same, Progress(0, live=False)))  # the same offset goes on
 
 
 def test_the_summary_records_both_sides_seeds_and_the_offset(tmp_path):

@@ -120,7 +120,7 @@ def test_check_compares_two_sampling_patterns_directly(tmp_path):
 
 def test_a_test_side_setting_goes_to_the_test_side_only(tmp_path):
     from batch.cli.commands import build_parser
-    from batch.decide.check import check_job_from_args
+    from batch.decide.check_job import check_job_from_args
 
     argv = ["check", "--scene", "corner", "--spp", "1", "--test-spp", "4", "--test-sampling-pattern", "BLUE_NOISE",
             "--out", str(tmp_path / "c")]  # fmt: skip

@@ -76,7 +76,7 @@ def test_check_takes_a_binary_or_a_python_for_each_side(tmp_path):
     """A binary on one side and another release's bpy module on the other (a user's Blender against the module of
     its release) is one check; both for one side is refused."""
     from batch.cli.commands import build_parser
-    from batch.decide.check import check_job_from_args
+    from batch.decide.check_job import check_job_from_args
 
     args = build_parser().parse_args(["check", "--scene", "corner", "--blender", "/opt/b", "--test-python", "/opt/p",
                                       "--out", str(tmp_path / "c")])  # fmt: skip

@@ -79,3 +79,20 @@ def test_small_passes_stay_on_the_calling_thread(monkeypatch):
     threads = []
     parallel.by_rows(lambda rows: threads.append(threading.current_thread()), 64, 1, parallel.MIN_ELEMENTS - 1)
     assert threads == [threading.current_thread()]
+
+
+@pytest.mark.parametrize("cores", [1, 7])
+def test_absorbing_a_chunks_moments_in_place_is_merging_them(monkeypatch, cores):
+    monkeypatch.setattr(parallel, "cores", lambda: cores)
+    monkeypatch.setattr(parallel, "MIN_ELEMENTS", 0)
+    images = _passes(41, 23, n=9).astype(np.float64)
+    run, chunk = wc.PixelMoments.of_passes(images[:5]), wc.PixelMoments.of_passes(images[5:])
+    merged = run.merged(chunk)
+    run.absorb(chunk)
+    assert run.n == 9 and np.array_equal(run.mean, merged.mean) and np.array_equal(run.m2, merged.m2)
+    np.testing.assert_allclose(run.m2, wc.PixelMoments.of_passes(images).m2, rtol=1e-9)  # and the batch moments
+    empty = wc.PixelMoments(41, 23)
+    empty.absorb(chunk)
+    assert empty.n == 4 and np.array_equal(empty.m2, chunk.m2) and empty.m2 is not chunk.m2
+    with pytest.raises(wc.WelchInputError, match=r"^pixel moments of different images: \(41, 23, 3\) and \(4, 4, 3\)$"):
+        run.absorb(wc.PixelMoments(4, 4))
