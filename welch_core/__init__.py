@@ -82,6 +82,7 @@ _EXPORTS = {
     "PVALUE_METHODS": "ttest",
     "Reason": "ttest",
     "TTestResult": "ttest",
+    "TileTestKind": "ttest",
     "paired_from_stats": "ttest",
     "paired_ttest": "ttest",
     "pvalue_as_erf": "ttest",

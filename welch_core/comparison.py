@@ -27,7 +27,7 @@ from .multitest import GlobalTest, bonferroni, bonferroni_p, combine_channels, g
 from .permutation import needs_resampling, permutation_max_t
 from .pixels import MIN_PIXEL_DF, PixelMoments, PixelUse, pixel_paired, pixel_use, pixel_welch
 from .tiles import TileStats, tile_row_blocks
-from .ttest import Reason, TTestResult, paired_from_stats, welch_from_stats
+from .ttest import Reason, TileTestKind, TTestResult, paired_from_stats, welch_from_stats
 from .verdict import Verdict
 
 __all__ = [
@@ -47,7 +47,7 @@ __all__ = [
     "test_tiles",
 ]
 
-TESTS = ("auto", "welch", "paired")
+TESTS = ("auto", *(test.value for test in TileTestKind))
 
 
 def seed_relation(ref_seeds, test_seeds) -> str:
@@ -60,7 +60,7 @@ def seed_relation(ref_seeds, test_seeds) -> str:
     return "disjoint" if a.isdisjoint(b) else "overlap"
 
 
-def _choose_test(requested: str, relation: str, shared: int) -> str:
+def _choose_test(requested: str, relation: str, shared: int) -> TileTestKind:
     if requested not in TESTS:
         raise WelchInputError(f"`test_kind` must be one of {TESTS}, got {requested!r}")
     if relation == "overlap":
@@ -68,16 +68,16 @@ def _choose_test(requested: str, relation: str, shared: int) -> str:
             f"the runs share {shared} seeds but not all: the unpaired test needs disjoint seeds and the paired "
             "test identical ones; render one run again with a fitting seed range"
         )
-    if requested == "welch" and relation == "identical":
+    if requested == TileTestKind.WELCH and relation == "identical":
         raise SeedOverlapError(
             "the runs use identical seeds, so their passes are not independent: the unpaired Welch test would be "
             "invalid; use the paired test"
         )
-    if requested == "paired" and relation == "disjoint":
+    if requested == TileTestKind.PAIRED and relation == "disjoint":
         raise SeedOverlapError("the paired test needs the same seeds on both sides, but the seed lists are disjoint")
     if requested == "auto":
-        return "paired" if relation == "identical" else "welch"
-    return requested
+        return TileTestKind.PAIRED if relation == "identical" else TileTestKind.WELCH
+    return TileTestKind(requested)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -90,7 +90,7 @@ class Comparison:
 
     alpha: float
     p_value: float  # this scale's p-value (at the top level the global one; 0 for a deterministic difference)
-    test: str  # "welch" or "paired"
+    test: TileTestKind
     pvalue_method: str
     result: TTestResult
     tile_pvalues: np.ndarray  # channels combined; NaN where no channel has a p-value
@@ -184,7 +184,7 @@ class Comparison:
 class TileTest:
     """The per-tile test of one scale before any decision: the t-test, which tiles are trusted, the means."""
 
-    kind: str  # "welch" or "paired"
+    kind: TileTestKind
     result: TTestResult
     suspect: np.ndarray  # tile-channels whose Welch samples are clearly not normal
     checked: bool  # normality checked (enough passes)
@@ -206,7 +206,7 @@ class TileTest:
     @property
     def welch(self) -> np.ndarray | bool:
         """Where the result is Welch's test: everywhere (disjoint seeds), or a paired run's `unpaired` tiles."""
-        return True if self.kind == "welch" else (self.unpaired if self.unpaired is not None else False)
+        return True if self.kind == TileTestKind.WELCH else (self.unpaired if self.unpaired is not None else False)
 
 
 def scale_factors(run: TileStats, tile: int | None = None) -> list[int]:
@@ -268,7 +268,7 @@ def test_tiles(
     own = of_ref.suspect | of_test.suspect
     own_excess = np.fmax(of_ref.excess, of_test.excess)
     fields = [f.name for f in dataclasses.fields(TTestResult)]
-    if kind == "paired":
+    if kind == TileTestKind.PAIRED:
         diffs = paired_differences(ref, test, pairs)
         result = paired_from_stats(diffs.mean, diffs.variance, diffs.n, pvalue_method=pvalue_method)
         use = np.zeros(result.pvalue.shape, bool)
@@ -358,7 +358,7 @@ def identical_passes_of(ref: TileStats, test: TileStats, kind: str) -> bool:
     case; disjoint seeds are never identical passes). Two runs with identical passes that were also made the
     same way (the same configuration) are one run compared with itself: refused, as that is a mistake and not
     evidence that two settings agree."""
-    if kind != "paired":
+    if kind != TileTestKind.PAIRED:
         return False
     if test.seeds == ref.seeds:
         same = bool(np.array_equal(test.sums, ref.sums, equal_nan=True))
@@ -467,7 +467,7 @@ def compare(
 
 def differences_of(ref: TileStats, test: TileStats, kind: str, pairs: PixelMoments | None) -> TileStats | None:
     """A paired run's per-seed differences with their pixel moments (None where there are none to test)."""
-    if kind != "paired" or pairs is None:
+    if kind != TileTestKind.PAIRED or pairs is None:
         return None
     if pairs.n != ref.n or pairs.shape != (ref.height, ref.width, ref.channels):
         raise WelchInputError(f"`pairs` must be the moments of the {ref.n} paired passes' differences, got {pairs.n}")
@@ -488,7 +488,7 @@ def selftest(ref: TileStats, alpha: float = 0.01) -> Comparison | None:
     is a reason to doubt a verdict against it."""
     if ref.n < 4:
         return None
-    return compare(*split_halves(ref), alpha=alpha, test_kind="welch", tile=ref.tile)
+    return compare(*split_halves(ref), alpha=alpha, test_kind=TileTestKind.WELCH, tile=ref.tile)
 
 
 def check_tolerance(tolerance) -> float | None:
@@ -533,7 +533,7 @@ def assess_scales(
     return tuple(scales), tests, runs, _uncovered(scales[0], scales)
 
 
-def choose_test(ref: TileStats, test: TileStats, test_kind: str = "auto") -> str:
+def choose_test(ref: TileStats, test: TileStats, test_kind: str = "auto") -> TileTestKind:
     """ "welch" or "paired" for these runs' seeds (see `compare`); raises when the seeds fit neither."""
     relation = seed_relation(ref.seeds, test.seeds)
     return _choose_test(test_kind, relation, len(set(ref.seeds) & set(test.seeds)))

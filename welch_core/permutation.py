@@ -42,6 +42,8 @@ from typing import Any
 
 import numpy as np
 
+from .ttest import TileTestKind
+
 __all__ = ["MAX_RESAMPLES", "RESAMPLES_PER_LEVEL", "Resampling", "needs_resampling", "permutation_max_t"]
 
 #: Resamples drawn for a test at `level`: this many over the level (999 at 0.01), so that a p-value well under the
@@ -94,7 +96,7 @@ class Resampling:
 
 def needs_resampling(kind: str, n_ref: int, n_test: int) -> bool:
     """Whether `biased` needs the permutation test's confirmation: Welch's test between different pass counts."""
-    return kind == "welch" and n_ref != n_test
+    return kind == TileTestKind.WELCH and n_ref != n_test
 
 
 def permutation_max_t(runs, level: float) -> Resampling:

@@ -52,7 +52,7 @@ import numpy.typing as npt
 
 from . import parallel
 from .errors import WelchInputError
-from .ttest import Reason, TTestResult, paired_from_stats, two_sided_pvalue, welch_from_stats
+from .ttest import Reason, TileTestKind, TTestResult, paired_from_stats, two_sided_pvalue, welch_from_stats
 
 __all__ = [
     "INDEPENDENT_PATTERNS",
@@ -607,7 +607,7 @@ def pixel_use(ref, test, kind: str, mode: str, differences=None) -> PixelUse:
         raise WelchInputError(f"`pixel_variance` must be one of {PIXEL_MODES}, got {mode!r}")
     if mode == "off":
         return PixelUse(mode, False, "off (--pixel-variance off)")
-    if kind == "paired" and (differences is None or differences.pixels is None):
+    if kind == TileTestKind.PAIRED and (differences is None or differences.pixels is None):
         return PixelUse(mode, False, "the paired runs' per-seed pixel differences were not kept")
     if ref.pixels is None or test.pixels is None:
         why = "a run keeps no pixel moments (made before they were kept, or it kept a pass with non-finite pixels)"
@@ -623,7 +623,7 @@ def pixel_use(ref, test, kind: str, mode: str, differences=None) -> PixelUse:
         conflict = moment_conflict(run)
         if conflict is not None:
             return PixelUse(mode, False, f"refused: the {side}'s pixel moments contradict its tile sums: {conflict[1]}")
-    measured = tripwire(differences) if kind == "paired" else tripwire(ref, test)
+    measured = tripwire(differences) if kind == TileTestKind.PAIRED else tripwire(ref, test)
     refusal = measured.refusal()
     if refusal is not None:
         return PixelUse(mode, False, refusal, ratio=measured.ratio)

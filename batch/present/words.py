@@ -96,7 +96,7 @@ def _identical_share(outcome: dict[str, Any]) -> str:
 
 def deterministic(count: int, test: str) -> str:
     """Tile-channels whose difference no noise explains, as the test saw them."""
-    if test == "paired":
+    if test == wc.TileTestKind.PAIRED:
         return f"{count} tile-channels differ by the same amount in every pass"
     return f"{count} tile-channels are constant on both sides but differ"
 
@@ -265,7 +265,7 @@ def method(
 ) -> str:  # fmt: skip
     """How the verdict was reached, in a sentence (`check`: the design of a check, see `summary.check_record`;
     `pixels`: whether tiles were tested by their pixel variances, `welch_core.PixelUse.to_json`)."""
-    name = "paired t-test on per-pass differences" if outcome["test"] == "paired" else "Welch's t-test"
+    name = "paired t-test on per-pass differences" if outcome["test"] == wc.TileTestKind.PAIRED else "Welch's t-test"
     sizes = ", ".join(str(s["tile"]) for s in outcome["scales"])
     if outcome["design"] == "sequential":
         text = (
