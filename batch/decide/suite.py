@@ -69,7 +69,7 @@ from ..jobs import template as jobs_template
 from ..jobs.distributed import cluster as side_cluster
 from ..jobs.job import BUILTIN_SCENES, NO_GPU_MESSAGE, RenderJob, builtin_scene_id
 from ..jobs.launch import blender_version, bpy_version, no_bpy
-from ..jobs.protocol import FAILING, verdict_status
+from ..jobs.protocol import FAILING, CaseStatus, verdict_status
 from .check import run_check
 from .check_job import CheckJob
 
@@ -415,7 +415,7 @@ class CaseResult:
 
     case: Case
     device: str
-    status: str  # "passed", "failed", "inconclusive", "underpowered", "skipped", "error"
+    status: CaseStatus
     verdict: str | None = None
     message: str = ""
     seconds: float = 0.0
@@ -428,20 +428,22 @@ class CaseResult:
         return f"{self.case.name} [{self.device}]"
 
 
-def status_of(case: Case, verdict: wc.Verdict, detectable: float | None = None, tolerance: float | None = None) -> str:
+def status_of(
+    case: Case, verdict: wc.Verdict, detectable: float | None = None, tolerance: float | None = None
+) -> CaseStatus:
     """Passed when the verdict is what the case expects and the case could have failed: a case expected to be
     `biased` fails when not found; given a `tolerance`, `no evidence of bias` passes only where `detectable` (the
     bias found with 80 % power, `Outcome.min_detectable`) is at most it, else the case is `underpowered`."""
     status = verdict_status(verdict)
-    if case.expect == "biased" and status != "inconclusive":
-        return "passed" if verdict == wc.Verdict.BIASED else "failed"
+    if case.expect == "biased" and status != CaseStatus.INCONCLUSIVE:
+        return CaseStatus.PASSED if verdict == wc.Verdict.BIASED else CaseStatus.FAILED
     if (
-        status == "passed"
+        status == CaseStatus.PASSED
         and tolerance is not None
         and verdict == wc.Verdict.NO_EVIDENCE
         and (detectable is None or detectable > tolerance)
     ):
-        return "underpowered"
+        return CaseStatus.UNDERPOWERED
     return status
 
 
@@ -457,9 +459,9 @@ def exit_code(outcomes: list[CaseResult]) -> int:
     not run, or when nothing ran at all (every case skipped: no device, say), else 3 when a case is inconclusive,
     underpowered or an expected difference was not found (the suite can't confirm every case), else 0 (skipped
     cases beside passed ones do not count)."""
-    if any(o.status == "failed" and o.verdict == wc.Verdict.BIASED for o in outcomes):
+    if any(o.status == CaseStatus.FAILED and o.verdict == wc.Verdict.BIASED for o in outcomes):
         return Exit.BIASED
-    if any(o.status == "error" for o in outcomes) or all(o.status == "skipped" for o in outcomes):
+    if any(o.status == CaseStatus.ERROR for o in outcomes) or all(o.status == CaseStatus.SKIPPED for o in outcomes):
         return Exit.USAGE
     if any(o.status in FAILING for o in outcomes):
         return Exit.INCONCLUSIVE
@@ -510,7 +512,7 @@ def _run_case(
     if problem:
         advice = f"to render it anew: {bless_command(suite, case, refs)}"
         message = f"the reference {reference_path(refs, case)}: {problem} ({advice})"
-        return CaseResult(case, device, "error", message=message)
+        return CaseResult(case, device, CaseStatus.ERROR, message=message)
     first = max(reference.seeds) + 1 + seed_offset
     # `passes` bounds the test side under a time budget too: past the reference's passes the two means differ in
     # how often they catch a rare bright path, which Welch's t does not forgive when one side has few passes.
@@ -535,11 +537,11 @@ def _run_case(
         )
         verdict, summary = run_check(job, progress_factory(count), where)
     except Undecided as exc:  # its time budget ended the first passes: nothing to look at
-        return CaseResult(case, device, "inconclusive", wc.Verdict.INCONCLUSIVE.label, str(exc),
+        return CaseResult(case, device, CaseStatus.INCONCLUSIVE, wc.Verdict.INCONCLUSIVE.label, str(exc),
                           seconds=time.perf_counter() - start)  # fmt: skip
     except BatchError as exc:
-        status = "skipped" if NO_GPU_MESSAGE in str(exc) else "error"
-        if status == "skipped":
+        status = CaseStatus.SKIPPED if NO_GPU_MESSAGE in str(exc) else CaseStatus.ERROR
+        if status == CaseStatus.SKIPPED:
             shutil.rmtree(folder, ignore_errors=True)
         return CaseResult(case, device, status, message=str(exc), seconds=time.perf_counter() - start)
     check = summary["check"]
@@ -549,7 +551,7 @@ def _run_case(
     status = status_of(case, verdict, detectable, tolerance)
     if case.expect == "biased":
         message += " (expected: biased)"
-    if status == "underpowered":
+    if status == CaseStatus.UNDERPOWERED:
         message = f"{underpowered_text(detectable, tolerance, case.tile)}; {message}"
     if check.get("ended_pass"):
         message += f" ({check['ended_pass']})"
@@ -623,9 +625,7 @@ def write_outputs(suite: Suite, outcomes: list[CaseResult], out: Path, refs: Pat
         "refs": str(refs),
         "alpha": suite.alpha,
         "exit_code": exit_code(outcomes),
-        "counts": {
-            s: sum(o.status == s for o in outcomes) for s in ("passed", *FAILING, "skipped", "error")
-        },  # fmt: skip
+        "counts": {s: sum(o.status == s for o in outcomes) for s in CaseStatus},  # fmt: skip
         "cases": [_outcome_record(o, out) for o in outcomes],
     }
     text = json.dumps(summary, indent=2, allow_nan=False)

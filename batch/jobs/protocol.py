@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import enum
 import json
 import logging
 import math
@@ -213,19 +214,31 @@ def parse_request(line: str) -> int | ChunkRequest | None:
 # -- verdicts and exit codes ---------------------------------------------------------------------------------
 
 
+class CaseStatus(enum.StrEnum):
+    """What became of a suite case or a matrix cell (the value is its key in report files, JUnit and the dashboard;
+    a member equals it as a string)."""
+
+    PASSED = "passed"  # the verdict the case expects, where it could have failed
+    FAILED = "failed"  # another verdict than the case expects
+    INCONCLUSIVE = "inconclusive"  # no verdict within the budget
+    UNDERPOWERED = "underpowered"  # nothing found, but a bias of the tolerance could hide
+    SKIPPED = "skipped"  # not run here (no GPU)
+    ERROR = "error"  # could not run
+
+
 #: What each verdict (by its label) means where the two sides should converge to the same image: the status of a
 #: suite case, a matrix cell or a JUnit test, and the exit code of the process. The one table of it.
 VERDICTS = {
-    "biased": ("failed", Exit.BIASED),
-    "equivalent": ("passed", Exit.OK),
-    "no_evidence": ("passed", Exit.OK),
-    "inconclusive": ("inconclusive", Exit.INCONCLUSIVE),
+    "biased": (CaseStatus.FAILED, Exit.BIASED),
+    "equivalent": (CaseStatus.PASSED, Exit.OK),
+    "no_evidence": (CaseStatus.PASSED, Exit.OK),
+    "inconclusive": (CaseStatus.INCONCLUSIVE, Exit.INCONCLUSIVE),
 }
 
 
 #: The statuses of a suite case that count against the suite (a JUnit failure, exit code 3 unless a case is biased):
 #: its verdict is not the expected one, it decided nothing, or it could not have found a bias of its tolerance.
-FAILING = ("failed", "inconclusive", "underpowered")
+FAILING = (CaseStatus.FAILED, CaseStatus.INCONCLUSIVE, CaseStatus.UNDERPOWERED)
 
 
 def verdict_exit(verdict) -> Exit:
@@ -233,7 +246,7 @@ def verdict_exit(verdict) -> Exit:
     return VERDICTS[str(verdict)][1]
 
 
-def verdict_status(verdict) -> str:
+def verdict_status(verdict) -> CaseStatus:
     """The status of a `welch_core.Verdict` (or its label) where no difference is expected."""
     return VERDICTS[str(verdict)][0]
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from ..jobs.protocol import FAILING
+from ..jobs.protocol import FAILING, CaseStatus
 
 #: Characters XML 1.0 does not allow (C0 controls but tab, newline and carriage return): a renderer's message
 #: may hold them, and one of them makes the whole file unreadable to a CI server.
@@ -23,7 +23,7 @@ def junit_xml(suite: str, outcomes) -> bytes:
     failures too (their messages say so), since the case did not pass."""
     import xml.etree.ElementTree as ET
 
-    counts = {s: sum(o.status == s for o in outcomes) for s in (*FAILING, "error", "skipped")}
+    counts = {s: sum(o.status == s for o in outcomes) for s in CaseStatus}
     root = ET.Element("testsuites")
     group = ET.SubElement(
         root,
@@ -41,9 +41,9 @@ def junit_xml(suite: str, outcomes) -> bytes:
         message = xml_text(o.message)
         if o.status in FAILING:
             ET.SubElement(case, "failure", message=f"{o.verdict}: {message}", type=o.status)
-        elif o.status == "error":
+        elif o.status == CaseStatus.ERROR:
             ET.SubElement(case, "error", message=message, type="error")
-        elif o.status == "skipped":
+        elif o.status == CaseStatus.SKIPPED:
             ET.SubElement(case, "skipped", message=message)
         out = ET.SubElement(case, "system-out")
         out.text = message + (xml_text(f"\nreport: {Path(o.folder) / 'report.html'}") if o.folder else "")
