@@ -268,24 +268,11 @@ def check_job(request: CheckRequest, probe=None) -> CheckJob:
         # Each side also writes its passes' images: the pixel test of paired runs needs each pixel's difference.
         reference = reference.replace(pass_images=PixelPairs.folder(out, "reference"))
         test = test.replace(pass_images=PixelPairs.folder(out, "test"))
-    return CheckJob(
-        reference=reference,
-        test=test,
-        out=str(out),
-        max_passes=max_passes,
-        max_seconds=args.max_seconds,
-        min_passes=args.min_passes,
-        alpha=args.alpha,
-        tolerance=args.tolerance,
-        equivalence_tile=args.equivalence_tile,
-        futility=args.futility,
-        pixel_variance=args.pixel_variance,
-        resume=args.resume,
-        workers=args.workers,
-        scheduler=args.scheduler,
-        seed_offset=offset,
-        auto_samples=auto.to_json(),
-    )
+    # The request's values the job carries as they are: its fields of the same name (the budget, alpha, tolerance,
+    # the claim, the stops, resuming, the cluster, the seed offset).
+    carried = {f.name: getattr(args, f.name) for f in dataclasses.fields(CheckJob) if hasattr(args, f.name)}
+    made = {"reference": reference, "test": test, "out": str(out), "max_passes": max_passes}
+    return CheckJob(**carried | made, auto_samples=auto.to_json())
 
 
 def _auto_samples(reference: RenderJob, test: RenderJob, probe=None) -> AutoSamples:
