@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .decision import Evidence, Outcome, decide
+from .decision import Evidence, Outcome, decide, equivalence_alpha
 from .diagnostics import MIN_PASSES_FOR_NORMALITY, normality, split_halves
 from .effect import Effect, effect_sizes
 from .errors import SeedOverlapError, WelchInputError, check_alpha
@@ -424,11 +424,8 @@ def compare(
     """
     alpha = check_alpha(alpha)
     tolerance = check_tolerance(tolerance)
-    ref.same_grid(test)
-    kind = choose_test(ref, test, test_kind)
-    identical = identical_passes_of(ref, test, kind)
-    use = pixel_use(ref, test, kind, pixel_variance, differences_of(ref, test, kind, pairs))
-    scales, tests, runs, uncovered = assess_scales(ref, test, kind, pvalue_method, alpha, tile, use.used, pairs)
+    start = scale_tests(ref, test, alpha, test_kind, pvalue_method, tile, pixel_variance, pairs)
+    kind, scales, tests, runs = start.kind, start.scales, start.tests, start.runs
     claim = check_claim_tile(equivalence_tile, scales, tolerance)
     count = len(scales)
     with np.errstate(invalid="ignore"):
@@ -449,19 +446,19 @@ def compare(
         design="fixed",
         significant=found,
         simultaneous=[bonferroni(alpha, 2, count, s.pvalues.size) for s in scales],
-        equivalence=2 * alpha,
+        equivalence=equivalence_alpha(alpha),
         whole=alpha,
         p_value=p_value,
         resampling=resampling,
     )
-    whole = test_tiles(ref.whole(), test.whole(), kind, pvalue_method)
-    outcome = decide(scales, tests, runs, evidence, alpha, tolerance, claim, identical, whole, uncovered)
+    outcome = decide(scales, tests, runs, evidence, alpha, tolerance, claim, start.identical, start.whole,
+                     start.uncovered)  # fmt: skip
     finest = scales[0]
     if outcome.deterministic:
         p_value = 0.0
-    use = pixel_share(use, tests)
+    use = pixel_share(start.pixel_use, tests)
     return dataclasses.replace(
-        finest, p_value=p_value, scales=scales, uncovered=uncovered, outcome=outcome, pixel_use=use
+        finest, p_value=p_value, scales=scales, uncovered=start.uncovered, outcome=outcome, pixel_use=use
     )
 
 
@@ -514,6 +511,36 @@ def check_claim_tile(equivalence_tile, scales, tolerance) -> int | None:
             f"`equivalence_tile` must be one of the tested tile sizes {sizes}, got {equivalence_tile!r}"
         )
     return int(equivalence_tile)
+
+
+@dataclass(frozen=True)
+class ScaleTests:
+    """What `compare` and a look of a check (`welch_core.looks.sequential_look`) both start from: the tile test
+    their seeds call for (`kind`), whether every pass is identical on both sides, where the pixel test is used,
+    every scale's comparison, tile test and runs, the finest tiles no scale tests, and the whole image's test."""
+
+    kind: TileTestKind
+    identical: bool
+    pixel_use: PixelUse
+    scales: tuple
+    tests: list
+    runs: list
+    uncovered: np.ndarray
+    whole: TileTest
+
+
+def scale_tests(
+    ref: TileStats, test: TileStats, alpha: float, test_kind: str = "auto", pvalue_method: str = "exact",
+    tile: int | None = None, pixel_variance: str = "off", pairs: PixelMoments | None = None,
+) -> ScaleTests:  # fmt: skip
+    """The runs tested at every scale (see `compare` for the arguments): the one start of every decision."""
+    ref.same_grid(test)
+    kind = choose_test(ref, test, test_kind)
+    identical = identical_passes_of(ref, test, kind)
+    use = pixel_use(ref, test, kind, pixel_variance, differences_of(ref, test, kind, pairs))
+    scales, tests, runs, uncovered = assess_scales(ref, test, kind, pvalue_method, alpha, tile, use.used, pairs)
+    whole = test_tiles(ref.whole(), test.whole(), kind, pvalue_method)
+    return ScaleTests(kind, identical, use, scales, tests, runs, uncovered, whole)
 
 
 def assess_scales(

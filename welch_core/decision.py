@@ -121,6 +121,12 @@ FUTILITY_LOSS = 0.05
 MAX_SHOWN_BOUND = 10.0
 
 
+def equivalence_alpha(alpha: float) -> float:
+    """The two-sided level of a tile-channel's equivalence interval: 2 alpha, its two one-sided tests at alpha each
+    (an intersection-union test, see above); at most 0.5, beyond which an interval would not be two-sided."""
+    return min(2.0 * alpha, 0.5)
+
+
 def identical_passes(alpha: float, share: float = IDENTICAL_SHARE) -> int:
     """The fewest identical passes that rule out, at 1 - alpha, a change altering `share` of the passes."""
     return max(MIN_PASSES_FOR_NORMALITY, math.ceil(math.log(alpha) / math.log1p(-share)))

@@ -52,23 +52,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .comparison import (
-    TileTest,
-    assess_scales,
-    check_claim_tile,
-    check_tolerance,
-    choose_test,
-    differences_of,
-    identical_passes_of,
-    pixel_share,
-    test_tiles,
-)
-from .decision import Claim, Evidence, Outcome, decide, identical_passes
+from .comparison import TileTest, check_claim_tile, check_tolerance, pixel_share, scale_tests
+from .decision import Claim, Evidence, Outcome, decide, equivalence_alpha, identical_passes
 from .effect import DETECTION_POWER
 from .errors import WelchInputError, check_alpha, check_int
 from .multitest import bonferroni
 from .permutation import needs_resampling, permutation_max_t
-from .pixels import PIXEL_MODES, PixelMoments, PixelUse, pixel_use
+from .pixels import PIXEL_MODES, PixelMoments, PixelUse
 from .sequential import SPENDING, boundaries, nominal_levels
 from .tiles import TileStats
 from .ttest import Reason, pvalue_exact
@@ -335,12 +325,8 @@ def sequential_look(
     probability below 1e-4 alpha for the levels used here.
     """
     fractions = np.asarray(fractions, dtype=float)
-    ref.same_grid(test)
-    kind = choose_test(ref, test, plan.test_kind)
-    identical = identical_passes_of(ref, test, kind)
-    use = pixel_use(ref, test, kind, plan.pixel_variance, differences_of(ref, test, kind, pairs))
-    scales, tests, runs, uncovered = assess_scales(ref, test, kind, "exact", plan.alpha, pixels=use.used, pairs=pairs)
-    whole = test_tiles(ref.whole(), test.whole(), kind)
+    start = scale_tests(ref, test, plan.alpha, plan.test_kind, pixel_variance=plan.pixel_variance, pairs=pairs)
+    kind, scales, tests, runs, whole = start.kind, start.scales, start.tests, start.runs, start.whole
     n = min(ref.n, test.n)
     if any(np.any(t.welch) for t in (*tests, whole)):  # Welch's test somewhere (a paired run's sparse tiles too)
         tests = [conservative(t, n) if np.any(t.welch) else t for t in tests]
@@ -355,7 +341,7 @@ def sequential_look(
     claimable = information_fraction(identical_passes(plan.alpha), plan.max_passes, fixed)
     equivalence_level = _equivalence_level(fractions, claimable, plan)
     # a budget too short for any claim plans as one look at the end would
-    planning = _equivalence_level(ahead, claimable, plan) or min(2 * plan.alpha, 0.5)
+    planning = _equivalence_level(ahead, claimable, plan) or equivalence_alpha(plan.alpha)
     significant = []
     crossed, best = 0, (0.0, 1.0, 1.0)  # (log ratio of p to its level, p, level) of the strongest hypothesis
     for scale, level in zip(scales, scale_levels, strict=True):
@@ -395,7 +381,7 @@ def sequential_look(
         else None,
     )
     outcome = decide(scales, tests, runs, evidence, plan.alpha, plan.tolerance, _claim(plan, scales, claim_tile),
-                     identical, whole, uncovered)  # fmt: skip
+                     start.identical, whole, start.uncovered)  # fmt: skip
     return Look(
         passes=n,
         fraction=float(fractions[-1]),
@@ -403,7 +389,7 @@ def sequential_look(
         p_value=best[1],
         threshold=best[2],
         crossed=crossed,
-        pixel_use=pixel_share(use, tests),
+        pixel_use=pixel_share(start.pixel_use, tests),
     )
 
 
@@ -415,7 +401,7 @@ def _equivalence_level(fractions, claimable: float, plan: SequentialPlan) -> flo
     spent = tuple(float(f) for f in fractions if f >= claimable)
     if not spent or float(fractions[-1]) < claimable:
         return 0.0
-    return float(_levels(spent, (min(2 * plan.alpha, 0.5),), plan.spending, plan.reserve)[0])
+    return float(_levels(spent, (equivalence_alpha(plan.alpha),), plan.spending, plan.reserve)[0])
 
 
 def _claim(plan: SequentialPlan, scales, sized: int | None) -> Claim | None:

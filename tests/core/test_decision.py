@@ -228,3 +228,10 @@ def test_a_bias_found_in_larger_tiles_outlines_no_tile_that_is_identical_on_both
     assert outcome.verdict == "biased" and outcome.significant.any()
     assert outcome.scales[0].significant == 0 and outcome.scales[1].significant  # found in 16-px tiles only
     assert not outcome.significant[0, 0] and not outcome.significant[:, 2:].any()
+
+
+def test_the_equivalence_level_is_two_alphas_up_to_a_two_sided_half():
+    """compare and every look of a check size their equivalence intervals with this one level."""
+    from welch_core.decision import equivalence_alpha
+
+    assert equivalence_alpha(0.01) == 0.02 and equivalence_alpha(0.25) == 0.5 and equivalence_alpha(0.4) == 0.5
