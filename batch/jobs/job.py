@@ -15,9 +15,9 @@ from dataclasses import dataclass
 
 from ..errors import BatchError
 from . import options
-from .lobes import LOBES, parse_lobes
+from .lobes import LOBES
 from .options import DEVICES, ON_NAN, add_options, default
-from .seeds import MAX_PASSES, format_seeds, parse_seeds
+from .seeds import MAX_PASSES, parse_seeds
 from .template import words
 
 #: The built-in scenes (`batch.blender.scenes.SCENES` builds them; a test holds the two together), named here so
@@ -71,8 +71,8 @@ class RenderJob:
     sampling_pattern: str | None = None
     overrides: tuple[str, ...] = ()
     resume: bool = False
-    on_nan: str = "stop"
-    checkpoint_every: int = 8
+    on_nan: str = default("on_nan", "render")
+    checkpoint_every: int = default("checkpoint_every", "render")
     blender: str | None = None
     lobes: tuple[str, ...] = ()  # light components and light groups accumulated as layers (batch.lobes)
     python: str | None = None  # a Python whose environment has a bpy module (another release) to render in
@@ -134,64 +134,36 @@ class RenderJob:
 
     @classmethod
     def from_args(cls, args: argparse.Namespace) -> RenderJob:
-        """The job described by arguments parsed with a parser that `add_arguments` set up."""
-        return cls(
-            out=args.out,
-            seeds=tuple(args.seeds),
-            spp=args.spp,
-            blend=args.blend,
-            scene=args.scene,
-            blend_scene=args.blend_scene,
-            tile=args.tile,
-            resolution=tuple(args.resolution) if args.resolution else None,
-            device=args.device,
-            sampling_pattern=args.sampling_pattern,
-            overrides=tuple(args.overrides),
-            resume=args.resume,
-            on_nan=args.on_nan,
-            checkpoint_every=args.checkpoint_every,
-            blender=args.blender,
-            lobes=args.lobes,
-            python=getattr(args, "python", None),
-            command=getattr(args, "pass_command", None),
-            command_dir=getattr(args, "command_dir", None),
-            pass_images=getattr(args, "pass_images", None),
-        )
+        """The job described by arguments parsed with a parser that `add_arguments` set up (a field whose option
+        the parser lacks keeps its default)."""
+        return cls(**{field: getattr(args, dest) for field, dest in ARGUMENTS if hasattr(args, dest)})
 
     def to_argv(self) -> list[str]:
-        """The arguments of ``render`` that describe this job (what `from_args` reads back)."""
-        argv = [self.blend] if self.blend is not None else []
-        if self.scene is not None:
-            argv += ["--scene", self.scene]
-        if self.blend_scene is not None:
-            argv += ["--blend-scene", self.blend_scene]
-        argv += ["--seeds", format_seeds(self.seeds), "--spp", str(self.spp), "--tile", str(self.tile)]
-        if self.resolution is not None:
-            argv += ["--resolution", *map(str, self.resolution)]
-        argv += ["--device", self.device]
-        if self.sampling_pattern is not None:
-            argv += ["--sampling-pattern", self.sampling_pattern]
-        for override in self.overrides:
-            argv += ["--set", override]
-        if self.resume:
-            argv.append("--resume")
-        if self.on_nan != "stop":
-            argv += ["--on-nan", self.on_nan]
-        if self.checkpoint_every != 8:
-            argv += ["--checkpoint-every", str(self.checkpoint_every)]
-        if self.blender is not None:
-            argv += ["--blender", self.blender]
-        if self.lobes:
-            argv += ["--lobes", ",".join(self.lobes)]
-        if self.python is not None:
-            argv += ["--python", self.python]
-        if self.command is not None:
-            argv += ["--command", self.command]
-        if self.command_dir is not None:
-            argv += ["--command-dir", self.command_dir]
-        if self.pass_images is not None:
-            argv += ["--pass-images", self.pass_images]
-        return [*argv, "--out", self.out]
+        """The arguments of ``render`` that describe this job (what `from_args` reads back): each field in the
+        order of `ARGUMENTS`, as its declared option writes it, where it is set (`ALWAYS_WRITTEN`: even at its
+        default); the scene file first, as the positional argument."""
+        defaults = {f.name: f.default for f in dataclasses.fields(self)}
+        argv = []
+        for field, dest in ARGUMENTS:
+            value = getattr(self, field)
+            unset = value is None or value is False or value == ()
+            if unset or (field not in ALWAYS_WRITTEN and value == defaults[field]):
+                continue
+            argv += [value] if dest == "blend" else options.to_argv(options.OPTIONS[dest], value)
+        return argv
+
+
+#: A job's fields in the order `to_argv` writes them, each with the option (its dest in `options.OPTIONS`) that
+#: carries it on the command line. A check's state records its sides' arguments: the order is part of the record.
+ARGUMENTS = (
+    ("blend", "blend"), ("scene", "scene"), ("blend_scene", "blend_scene"), ("seeds", "seeds"), ("spp", "spp"),
+    ("tile", "tile"), ("resolution", "resolution"), ("device", "device"), ("sampling_pattern", "sampling_pattern"),
+    ("overrides", "overrides"), ("resume", "resume"), ("on_nan", "on_nan"), ("checkpoint_every", "checkpoint_every"),
+    ("blender", "blender"), ("lobes", "lobes"), ("python", "python"), ("command", "pass_command"),
+    ("command_dir", "command_dir"), ("pass_images", "pass_images"), ("out", "out"),
+)  # fmt: skip
+#: The fields written even at their defaults (what renders the passes, where they go).
+ALWAYS_WRITTEN = ("seeds", "spp", "tile", "device", "out")
 
 
 def _check_declared(dest: str, value) -> None:
@@ -217,14 +189,6 @@ def positive_int(text: str) -> int:
     return value
 
 
-def lobes_arg(text: str) -> tuple[str, ...]:
-    """argparse type: ``all`` or a comma-separated list of `batch.lobes.LOBES`."""
-    try:
-        return parse_lobes(text)
-    except BatchError as exc:
-        raise argparse.ArgumentTypeError(str(exc).removeprefix("--lobes ")) from None
-
-
 def seeds_arg(text: str) -> list[int]:
     """argparse type: ``A:B`` or ``S1,S2,...``."""
     try:
@@ -234,27 +198,9 @@ def seeds_arg(text: str) -> list[int]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Declare the options of a render job (the ``render`` command's; `batch.jobs.options` declares the ones
-    other commands and the suite files share)."""
+    """Declare the options of a render job (the ``render`` command's) as `batch.jobs.options` declares them."""
     parser.add_argument("blend", nargs="?", metavar="SCENE.blend", help="scene file (default: the file Blender opened)")
-    add_options(parser, "render", ("scene",))
-    parser.add_argument("--seeds", type=seeds_arg, required=True, help="A:B (half-open range) or S1,S2,...")
-    declared = ("blend_scene", "spp", "tile", "resolution", "device", "sampling_pattern", "overrides", "lobes",
-                "blender", "python", "pass_command", "command_dir")  # fmt: skip
+    declared = ("scene", "seeds", "blend_scene", "spp", "tile", "resolution", "device", "sampling_pattern", "overrides",
+                "lobes", "blender", "python", "pass_command", "command_dir", "resume", "on_nan", "checkpoint_every",
+                "out", "pass_images")  # fmt: skip
     add_options(parser, "render", declared)
-    parser.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")
-    add_options(parser, "render", ("on_nan",))
-    parser.add_argument(
-        "--checkpoint-every",
-        type=positive_int,
-        default=8,
-        metavar="N",
-        help="save the statistics file every N passes (default 8)",
-    )
-    parser.add_argument("--out", required=True, metavar="STATS", help="statistics file to write (.npz)")
-    parser.add_argument(
-        "--pass-images",
-        metavar="DIR",
-        help="also write each pass's RGB image into DIR as SEED.npy (float32): what a paired check folds into each "
-        "pixel's difference per seed for the pixel-variance test",
-    )

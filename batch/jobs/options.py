@@ -22,7 +22,7 @@ from typing import Any
 
 from ..errors import BatchError
 from .lobes import LOBES, parse_lobes
-from .seeds import MAX_PASSES, MAX_SEED
+from .seeds import MAX_PASSES, MAX_SEED, format_seeds, parse_seeds
 
 #: Cycles' largest render side (it clamps larger values) and largest samples per pixel (2**24).
 MAX_RESOLUTION = 65536
@@ -138,6 +138,13 @@ def _lobes(name: str, value) -> tuple[str, ...]:
         raise BatchError(f"{name} takes 'all' or some of {','.join(LOBES)}, got {_show(value)}") from None
 
 
+def _seeds(name: str, value) -> list[int]:
+    try:
+        return parse_seeds(value)
+    except ValueError as exc:
+        raise BatchError(f"{name} {str(exc).removeprefix('--seeds ')}") from None
+
+
 def _override(name: str, value) -> str:
     from .overrides import OverrideError, parse_override
 
@@ -160,6 +167,8 @@ KINDS: dict[str, Callable[[Option, str, Any], Any]] = {
     "text": lambda o, n, v: text(n, v),
     "lobes": lambda o, n, v: _lobes(n, v),
     "override": lambda o, n, v: _override(n, v),
+    "seeds": lambda o, n, v: _seeds(n, v),
+    "flag": lambda o, n, v: bool(v),  # given or not: no value to check
 }
 #: The kinds whose limits exclude the bounds themselves: (low, high) open or half-open, as their errors say.
 OPEN_LOW = ("seconds", "percentage", "probability")
@@ -682,6 +691,56 @@ OPTIONS = {
                 ),
             },
         ),
+        # -- what a render job alone takes: its seeds and its file, resuming, checkpoints, the pass images
+        Option(
+            "seeds",
+            "--seeds",
+            None,
+            "seeds",
+            "A:B (half-open range) or S1,S2,...",
+            uses={"render": Use(required=True)},
+        ),
+        Option(
+            "resume",
+            "--resume",
+            None,
+            "flag",
+            "continue an interrupted run in --out",
+            default=False,
+            uses={"render": _USE},
+        ),  # fmt: skip
+        Option(
+            "checkpoint_every",
+            "--checkpoint-every",
+            None,
+            "integer",
+            "save the statistics file every N passes",
+            default=8,
+            low=1,
+            high=MAX_PASSES,
+            metavar="N",
+            number=True,
+            uses={"render": _USE},
+        ),
+        Option(
+            "out",
+            "--out",
+            None,
+            "text",
+            "statistics file to write (.npz)",
+            metavar="STATS",
+            uses={"render": Use(required=True)},
+        ),  # fmt: skip
+        Option(
+            "pass_images",
+            "--pass-images",
+            None,
+            "text",
+            "also write each pass's RGB image into DIR as SEED.npy (float32): what a paired check folds into each "
+            "pixel's difference per seed for the pixel-variance test",
+            metavar="DIR",
+            uses={"render": _USE},
+        ),
         Option(
             "alpha",
             "--alpha",
@@ -732,6 +791,18 @@ def argparse_type(option: Option, flag: str | None = None, auto: bool = False) -
     return convert
 
 
+def to_argv(option: Option, value) -> list[str]:
+    """`value` on the command line as `option`'s flag and its text: what its parser reads back to `value`."""
+    if option.kind == "flag":
+        return [option.flag] if value else []
+    if option.many:
+        return [word for item in value for word in (option.flag, str(item))]
+    if option.kind == "resolution":
+        return [option.flag, *map(str, value)]
+    text = {"lobes": ",".join, "seeds": format_seeds}.get(option.kind, option.show)(value)
+    return [option.flag, text]
+
+
 def add_options(parser, command: str, dests: Iterable[str], side: str = "reference"):
     """Declare the options `dests` on `parser` as `command` takes them: flags, checks, defaults and help from
     the declaration. `side` ``test``: the test side's own (``--test-spp``, dest ``test_spp``; default None: the
@@ -751,6 +822,9 @@ def add_options(parser, command: str, dests: Iterable[str], side: str = "referen
             help_text = use.test_help or f"the test side's {what} (default: the reference's)"
             value = shown = () if option.many else None
         auto = use.auto and side == "reference"
+        if option.kind == "flag":
+            parser.add_argument(flag, dest=dest_name, action="store_true", help=help_text.replace("%", "%%"))
+            continue
         if "{default}" in help_text:
             help_text = help_text.format(default="auto" if auto and shown is None else option.show(shown))
         elif shown not in (None, [], ()) and not use.required:
