@@ -155,9 +155,9 @@ def _add_check(sub) -> None:
     k.add_argument("--unpaired", action="store_true", help="disjoint seeds even on one build (an A/A check)")
     add_options(k, "check", ("seed_offset",))
     add_cluster_arguments(k)
-    k.add_argument("--resume", action="store_true", help="continue a stopped check in --out")
+    add_options(k, "check", ("resume",))
     k.add_argument("--json-progress", action="store_true", help="one JSON line per event on stdout, for programs")
-    k.add_argument("--out", required=True, metavar="DIR", help="folder for both sides' statistics and the report")
+    add_options(k, "check", ("out",))
 
 
 def _add_ingest(sub) -> None:
@@ -185,7 +185,7 @@ def _add_ingest(sub) -> None:
         "layers of the statistics file, tested by compare one by one (light components of other renderers)",
     )
     add_options(i, "ingest", ("on_nan",))
-    i.add_argument("--out", required=True, metavar="STATS", help="statistics file to write (must not exist)")
+    add_options(i, "ingest", ("out",))
 
 
 def _add_compare(sub) -> None:
@@ -207,7 +207,7 @@ def _add_compare(sub) -> None:
             choices=wc.PVALUE_METHODS,
             help="exact Student t (default); gauss/as_erf: the paper's approximations where nu >= 20",
         )
-        c.add_argument("--out", required=True, metavar="REPORT_DIR", help="folder for the report (created if missing)")
+        add_options(c, name, ("out",))
         add_options(c, name, ("tolerance", "equivalence_tile", "tile"))
         if name == "compare":  # a selftest's halves are subsets, which keep no pixel moments
             add_options(c, name, ("pixel_variance",))
@@ -241,7 +241,7 @@ def _add_merge(sub) -> None:
         "sampling pattern, settings and overrides) and have disjoint seeds.",
     )
     m.add_argument("runs", nargs="+", metavar="STATS", help="statistics files to merge")
-    m.add_argument("--out", required=True, metavar="STATS", help="merged statistics file to write (must not exist)")
+    add_options(m, "merge", ("out",))
 
     lint = sub.add_parser("lint", help="list settings that make Cycles biased or passes dependent")
     lint.add_argument("blend", metavar="SCENE.blend")
@@ -277,9 +277,9 @@ def _add_suite(sub) -> None:
             a.add_argument("--force", action="store_true", help="replace a reference even where the new one differs")
             a.add_argument("--missing", action="store_true", help="render only the cases that have no reference")
         else:
-            a.add_argument("--out", required=True, metavar="DIR", help="folder for the results and the dashboard")
+            add_options(a, "suite run", ("out",))
             add_options(a, "suite run", ("overrides",))
-            a.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")
+            add_options(a, "suite run", ("resume",))
             add_cluster_arguments(a)
             add_options(a, "suite run", ("seed_offset",))
 
@@ -312,7 +312,7 @@ def _add_matrix(sub) -> None:
                            "the first)")  # fmt: skip
         else:
             add_options(m, "bisect", ("overrides", "sampling_pattern"), side="test")
-        m.add_argument("--out", required=True, metavar="DIR", help="folder for the renders, reports and index.html")
+        add_options(m, name, ("out",))
 
 
 def _add_audit(sub) -> None:
@@ -363,9 +363,7 @@ def _add_audit(sub) -> None:
     add_cluster_arguments(a)
     a.add_argument("--plan", action="store_true", help="say what the release supports, the cells, the level and "
                    "the time expected, and render nothing")  # fmt: skip
-    a.add_argument("--resume", action="store_true", help="continue the audit in --out, reusing every decided cell")
-    a.add_argument("--out", required=True, metavar="DIR", help="folder for the cells' checks, summary.json, "
-                   "junit.xml and index.html")  # fmt: skip
+    add_options(a, "audit", ("resume", "out"))
 
 
 def _add_bpy(sub) -> None:

@@ -196,6 +196,7 @@ class Use:
     deferred: bool = False
     test_help: str | None = None
     auto: bool = False  # ``auto`` is a value here: None, which the command resolves (check's --spp)
+    metavar: str | None = None  # what the value is here, where the option's own does not say it (--out DIR)
 
 
 _USE = Use()
@@ -707,8 +708,13 @@ OPTIONS = {
             "flag",
             "continue an interrupted run in --out",
             default=False,
-            uses={"render": _USE},
-        ),  # fmt: skip
+            uses={
+                "render": _USE,
+                "suite run": _USE,
+                "check": Use(help="continue a stopped check in --out"),
+                "audit": Use(help="continue the audit in --out, reusing every decided cell"),
+            },
+        ),
         Option(
             "checkpoint_every",
             "--checkpoint-every",
@@ -729,8 +735,27 @@ OPTIONS = {
             "text",
             "statistics file to write (.npz)",
             metavar="STATS",
-            uses={"render": Use(required=True)},
-        ),  # fmt: skip
+            uses={
+                "render": Use(required=True),
+                "ingest": Use(required=True, help="statistics file to write (must not exist)"),
+                "merge": Use(required=True, help="merged statistics file to write (must not exist)"),
+                **dict.fromkeys(
+                    ("compare", "selftest"),
+                    Use(required=True, help="folder for the report (created if missing)", metavar="REPORT_DIR"),
+                ),
+                "check": Use(required=True, help="folder for both sides' statistics and the report", metavar="DIR"),
+                "suite run": Use(required=True, help="folder for the results and the dashboard", metavar="DIR"),
+                **dict.fromkeys(
+                    ("matrix", "bisect"),
+                    Use(required=True, help="folder for the renders, reports and index.html", metavar="DIR"),
+                ),
+                "audit": Use(
+                    required=True,
+                    help="folder for the cells' checks, summary.json, junit.xml and index.html",
+                    metavar="DIR",
+                ),
+            },
+        ),
         Option(
             "pass_images",
             "--pass-images",
@@ -813,7 +838,7 @@ def add_options(parser, command: str, dests: Iterable[str], side: str = "referen
         value = None if use.deferred else option.default_for(command)
         shown = option.default_for(command)
         help_text = use.help or option.help
-        flag, dest_name, metavar = option.flag, dest, option.metavar
+        flag, dest_name, metavar = option.flag, dest, use.metavar or option.metavar
         if side == "test":
             if "test" not in option.sides:
                 raise KeyError(f"{option.flag} has no test side")

@@ -79,6 +79,19 @@ def test_every_field_round_trips_through_argv(job):
     assert cli.build_parser().parse_args(["render", *job.to_argv()]).out == job.out  # the real command too
 
 
+def test_the_argv_of_a_job_is_written_in_one_order():
+    """A check's state records its sides' argv and resumes only the same: the order and form stay as they were."""
+    assert FULL.to_argv() == [
+        "/scenes/my scene.blend", "--blend-scene", "Scene.001", "--seeds", "3,1,2", "--spp", "4", "--tile", "16",
+        "--resolution", "320", "240", "--device", "OPTIX", "--sampling-pattern", "BLUE_NOISE",
+        "--set", FULL.overrides[0], "--set", "cycles.blur_glossy=0", "--resume", "--on-nan", "keep",
+        "--checkpoint-every", "3", "--blender", "/opt/blender-4.5/blender", "--lobes", "diffuse,glossy,lightgroups",
+        "--pass-images", "/runs/out dir/pairs/test", "--out", FULL.out,
+    ]  # fmt: skip
+    assert RenderJob(out="a.npz", seeds=range(0, 64)).to_argv() == [
+        "--seeds", "0:64", "--spp", "1", "--tile", "32", "--device", "CPU", "--out", "a.npz"]  # fmt: skip
+
+
 def test_every_field_is_covered():
     """A new field without a command-line form would be lost between processes."""
     changed = {f.name for f in dataclasses.fields(RenderJob) for job in (FULL, FULL_PYTHON, FULL_COMMAND)

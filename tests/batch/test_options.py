@@ -36,11 +36,7 @@ ARGV = {
 NOT_COMMANDS = {"case", "suite", "addon"}
 #: Flags of a declared option's name that are another option: demo's --resolution is one side of a square image,
 #: audit's --scene is repeatable (the built-in scenes to audit).
-OTHER_OPTIONS = {("demo", "--resolution"), ("audit", "--scene"), ("ingest", "--seeds")} | {
-    (command, flag)  # a folder or file of the command's own kind, resuming the command's own work
-    for command in ("check", "ingest", "compare", "selftest", "merge", "suite run", "matrix", "bisect", "audit", "demo")
-    for flag in ("--out", "--resume")
-}
+OTHER_OPTIONS = {("demo", "--resolution"), ("audit", "--scene"), ("ingest", "--seeds"), ("demo", "--out")}
 
 USES = [(dest, place) for dest, o in OPTIONS.items() for place in o.uses if place not in NOT_COMMANDS]
 
