@@ -761,8 +761,8 @@ OPTIONS = {
             "--pass-images",
             None,
             "text",
-            "also write each pass's RGB image into DIR as SEED.npy (float32): what a paired check folds into each "
-            "pixel's difference per seed for the pixel-variance test",
+            "also keep each pass's image in DIR as SEED.exr (the pass's own EXR file, moved there): what a paired "
+            "check folds into each pixel's difference per seed for the pixel-variance test",
             metavar="DIR",
             uses={"render": _USE},
         ),
