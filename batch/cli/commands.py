@@ -132,27 +132,19 @@ def _add_check(sub) -> None:
     add_options(k, "check", ("scene",))
     add_options(k, "check", ("blend_scene", "overrides"))
     k.add_argument("--test-blend", metavar="OTHER.blend", help="the test side's scene file (default: SCENE.blend)")
-    k.add_argument("--test-blend-scene", metavar="NAME", help="which scene of the test side's file")
+    add_options(k, "check", ("blend_scene",), side="test")
     add_options(k, "check", ("blender", "python"))
     add_options(k, "check", ("blender", "python"), side="test")
     add_options(k, "check", ("pass_command",))
-    k.add_argument("--test-command", metavar="TEMPLATE", help="the test side's command (default: --command)")
+    add_options(k, "check", ("pass_command",), side="test")
     add_options(k, "check", ("command_dir",))
     add_options(k, "check", ("tolerance", "equivalence_tile", "pixel_variance"))
-    k.add_argument(
-        "--no-futility",
-        dest="futility",
-        action="store_false",
-        help="render the whole budget even when neither claim is within its reach (by default the check stops "
-        "`inconclusive` once its claim can't be bounded by the budget at the current estimates and no tile-channel "
-        "has a 5%% chance left to reach `biased` by the budget, even with the bias the budget detects there: the "
-        "stop gives up at most 5%% of the power against such a bias)",
-    )
+    add_options(k, "check", ("futility",))
     add_options(k, "check", ("alpha",))
     add_options(k, "check", ("max_passes", "max_seconds", "min_passes"))
     add_options(k, "check", ("spp", "tile", "resolution", "device", "sampling_pattern", "lobes"))
     add_options(k, "check", TEST_SIDE, side="test")
-    k.add_argument("--unpaired", action="store_true", help="disjoint seeds even on one build (an A/A check)")
+    add_options(k, "check", ("unpaired",))
     add_options(k, "check", ("seed_offset",))
     add_cluster_arguments(k)
     add_options(k, "check", ("resume",))

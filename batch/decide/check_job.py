@@ -137,7 +137,7 @@ class CheckRequest:
     test_blender: str | None = None
     test_python: str | None = None
     pass_command: str | None = None
-    test_command: str | None = None
+    test_pass_command: str | None = None
     command_dir: str | None = None
     max_passes: int | None = None  # None: DEFAULT_MAX_PASSES, unless max_seconds is given
     max_seconds: float | None = None
@@ -185,7 +185,7 @@ def check_job(request: CheckRequest, probe=None) -> CheckJob:
     args = request
     if args.blend is not None and args.scene is not None:
         raise BatchError(f"give a .blend file or a built-in scene, not both ({args.blend}, {args.scene!r})")
-    if args.test_command and not args.pass_command:
+    if args.test_pass_command and not args.pass_command:
         raise BatchError("--test-command needs --command: the reference side's passes are rendered the same way")
     if args.blend is None and args.scene is None and not args.pass_command:
         raise BatchError("no scene to check: give a .blend file or a built-in scene (--scene), or --command")
@@ -209,7 +209,7 @@ def check_job(request: CheckRequest, probe=None) -> CheckJob:
     test_blender = args.test_blender or (None if args.test_python else args.blender)
     test_python = args.test_python or (None if args.test_blender else args.python)
     same_build = test_blender == args.blender and test_python == args.python and (
-        args.test_command or args.pass_command
+        args.test_pass_command or args.pass_command
     ) == args.pass_command  # fmt: skip
     paired = same_build and not args.unpaired
     offset = args.seed_offset
@@ -248,7 +248,7 @@ def check_job(request: CheckRequest, probe=None) -> CheckJob:
         blender=test_blender,
         python=test_python,
         overrides=tuple(args.overrides),
-        command=args.test_command or args.pass_command,
+        command=args.test_pass_command or args.pass_command,
         **(common | own),
     )
     if sides_identical(reference, test):

@@ -462,9 +462,11 @@ OPTIONS = {
                 "render": _USE,
                 "check": Use(
                     help="render the reference's passes with this command of another renderer instead of "
-                    "Cycles (as render --command; no scene)"
-                ),  # fmt: skip
+                    "Cycles (as render --command; no scene)",
+                    test_help="the test side's command (default: --command)",
+                ),
             },
+            sides=_BOTH,
         ),
         Option(
             "command_dir",
@@ -492,7 +494,8 @@ OPTIONS = {
             "text",
             "which scene of the .blend (default: its active one)",
             metavar="NAME",
-            uses=dict.fromkeys((*_JOB, "lint"), _USE),
+            uses=dict.fromkeys((*_JOB, "lint"), _USE) | {"check": Use(test_help="which scene of the test side's file")},
+            sides=_BOTH,
         ),
         Option(
             "blender",
@@ -692,6 +695,28 @@ OPTIONS = {
                 ),
             },
         ),
+        # -- what a check alone takes
+        Option(
+            "futility",
+            "--no-futility",
+            None,
+            "flag",
+            "render the whole budget even when neither claim is within its reach (by default the check stops "
+            "`inconclusive` once its claim can't be bounded by the budget at the current estimates and no "
+            "tile-channel has a 5% chance left to reach `biased` by the budget, even with the bias the budget "
+            "detects there: the stop gives up at most 5% of the power against such a bias)",
+            default=True,  # the flag turns it off
+            uses={"check": _USE},
+        ),
+        Option(
+            "unpaired",
+            "--unpaired",
+            None,
+            "flag",
+            "disjoint seeds even on one build (an A/A check)",
+            default=False,
+            uses={"check": _USE},
+        ),
         # -- what a render job alone takes: its seeds and its file, resuming, checkpoints, the pass images
         Option(
             "seeds",
@@ -847,8 +872,9 @@ def add_options(parser, command: str, dests: Iterable[str], side: str = "referen
             help_text = use.test_help or f"the test side's {what} (default: the reference's)"
             value = shown = () if option.many else None
         auto = use.auto and side == "reference"
-        if option.kind == "flag":
-            parser.add_argument(flag, dest=dest_name, action="store_true", help=help_text.replace("%", "%%"))
+        if option.kind == "flag":  # given or not; a flag that turns something off stores False
+            action = "store_false" if option.default is True else "store_true"
+            parser.add_argument(flag, dest=dest_name, action=action, help=help_text.replace("%", "%%"))
             continue
         if "{default}" in help_text:
             help_text = help_text.format(default="auto" if auto and shown is None else option.show(shown))

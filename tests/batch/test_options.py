@@ -36,7 +36,10 @@ ARGV = {
 NOT_COMMANDS = {"case", "suite", "addon"}
 #: Flags of a declared option's name that are another option: demo's --resolution is one side of a square image,
 #: audit's --scene is repeatable (the built-in scenes to audit).
-OTHER_OPTIONS = {("demo", "--resolution"), ("audit", "--scene"), ("ingest", "--seeds"), ("demo", "--out")}
+#: Flags of a declared option's name that mean another thing to one command: compare's --unpaired chooses the test
+#: of finished runs (with --paired), check's renders disjoint seeds.
+OTHER_OPTIONS = {("demo", "--resolution"), ("audit", "--scene"), ("ingest", "--seeds"), ("demo", "--out"),
+                 ("compare", "--unpaired")}  # fmt: skip
 
 USES = [(dest, place) for dest, o in OPTIONS.items() for place in o.uses if place not in NOT_COMMANDS]
 
