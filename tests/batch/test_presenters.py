@@ -178,3 +178,18 @@ def test_a_biased_headline_leads_with_the_claim_that_decided():
     assert words.sentence(outcome).startswith(
         "biased: whole image -7.86 % [-9.00 %, -6.00 %]; most significant -6.04 %"
     )
+
+
+def test_every_reason_of_a_verdict_has_its_words():
+    """A verdict's reason (`welch_core.VerdictReason`, one per branch of `decide`) has its own sentence and next step;
+    `nothing_found` is the words' last case, no other reason falls into it."""
+    import inspect
+
+    from welch_core import decision
+
+    decided = inspect.getsource(decision.decide)
+    for source in (inspect.getsource(words.sentence), inspect.getsource(words.next_step)):
+        for reason in wc.VerdictReason:
+            assert f"VerdictReason.{reason.name}" in decided, reason
+            if reason != wc.VerdictReason.NOTHING_FOUND:
+                assert f"Why.{reason.name}" in source, reason
