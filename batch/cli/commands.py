@@ -90,30 +90,9 @@ def _add_render(sub) -> None:
         "and keeps what was rendered (continue with --resume).",
     )
     jobs.add_arguments(r)
-    r.add_argument("--json-progress", action="store_true", help="one JSON line per event on stdout, for programs")
-    r.add_argument(
-        "--serve",
-        action="store_true",
-        help="for programs: render the seeds in chunks, one per line of stdin giving the number of passes; the "
-        "scene stays loaded, the statistics are saved after each chunk; or a JSON line "
-        '{"seeds": [...], "out": FILE} renders exactly those seeds into FILE',
-    )
-    r.add_argument(
-        "--probe",
-        action="store_true",
-        help="for programs: render nothing, only open the scene and print what it asks of the passes (its own "
-        "samples and its settings that act only above some samples per render) as one JSON event; with --set, "
-        "--sampling-pattern or a --device other than the CPU, also set the scene up as its passes would be, "
-        "refusing what this build lacks as a render does",
-    )
+    add_options(r, "render", ("json_progress", "serve", "probe"))
     add_cluster_arguments(r)
-    r.add_argument(
-        "--chunk",
-        type=jobs.positive_int,
-        metavar="N",
-        help="passes a worker renders per task with --workers or --scheduler (default: about 4 tasks a worker, at "
-        "most 64); a worker that dies loses at most its chunk",
-    )
+    add_options(r, "render", ("chunk",))
 
 
 def _add_check(sub) -> None:
@@ -148,7 +127,7 @@ def _add_check(sub) -> None:
     add_options(k, "check", ("seed_offset",))
     add_cluster_arguments(k)
     add_options(k, "check", ("resume",))
-    k.add_argument("--json-progress", action="store_true", help="one JSON line per event on stdout, for programs")
+    add_options(k, "check", ("json_progress",))
     add_options(k, "check", ("out",))
 
 
@@ -264,7 +243,7 @@ def _add_suite(sub) -> None:
         a.add_argument("--refs", metavar="DIR", help="the references' folder (default for `builtin`: shipped ones)")
         add_options(a, f"suite {action}", ("blender", "python", "device"))
         a.add_argument("--filter", nargs="+", metavar="PATTERN", help="only the cases whose names match")
-        a.add_argument("--json-progress", action="store_true", help="one JSON line per event on stdout")
+        add_options(a, f"suite {action}", ("json_progress",))
         if action == "bless":
             a.add_argument("--force", action="store_true", help="replace a reference even where the new one differs")
             a.add_argument("--missing", action="store_true", help="render only the cases that have no reference")

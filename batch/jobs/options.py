@@ -695,6 +695,56 @@ OPTIONS = {
                 ),
             },
         ),
+        # -- how a command talks to programs, and how render serves one
+        Option(
+            "json_progress",
+            "--json-progress",
+            None,
+            "flag",
+            "one JSON line per event on stdout, for programs",
+            default=False,
+            uses={
+                "render": _USE,
+                "check": _USE,
+                **dict.fromkeys(("suite bless", "suite run"), Use(help="one JSON line per event on stdout")),
+            },
+        ),
+        Option(
+            "serve",
+            "--serve",
+            None,
+            "flag",
+            "for programs: render the seeds in chunks, one per line of stdin giving the number of passes; the scene "
+            "stays loaded, the statistics are saved after each chunk; or a JSON line "
+            '{"seeds": [...], "out": FILE} renders exactly those seeds into FILE',
+            default=False,
+            uses={"render": _USE},
+        ),
+        Option(
+            "probe",
+            "--probe",
+            None,
+            "flag",
+            "for programs: render nothing, only open the scene and print what it asks of the passes (its own samples "
+            "and its settings that act only above some samples per render) as one JSON event; with --set, "
+            "--sampling-pattern or a --device other than the CPU, also set the scene up as its passes would be, "
+            "refusing what this build lacks as a render does",
+            default=False,
+            uses={"render": _USE},
+        ),
+        Option(
+            "chunk",
+            "--chunk",
+            None,
+            "integer",
+            "passes a worker renders per task with --workers or --scheduler (default: about 4 tasks a worker, at most "
+            "64); a worker that dies loses at most its chunk",
+            low=1,
+            high=MAX_PASSES,
+            metavar="N",
+            number=True,
+            uses={"render": _USE},
+        ),
         # -- what a check alone takes
         Option(
             "futility",
