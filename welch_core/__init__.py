@@ -25,10 +25,8 @@ _EXPORTS = {
     "pvalue_rgb": "colormap",
     "tonemap": "colormap",
     "upscale_tiles": "colormap",
-    "TESTS": "comparison",
     "Comparison": "comparison",
     "compare": "comparison",
-    "seed_relation": "comparison",
     "selftest": "comparison",
     "Difference": "decision",
     "Outcome": "decision",
@@ -76,13 +74,19 @@ _EXPORTS = {
     "PixelUse": "pixels",
     "pixel_eligibility": "pixels",
     "pixel_use": "pixels",
+    "TileTest": "tile_test",
+    "TileTestMethod": "tile_test",
+    "TESTS": "tile_tests",
+    "TILE_TESTS": "tile_tests",
+    "TileTestKind": "tile_tests",
+    "seed_relation": "tile_tests",
+    "tile_test_of": "tile_tests",
     "RunInfo": "tiles",
     "TileStats": "tiles",
     "tile_sums": "tiles",
     "PVALUE_METHODS": "ttest",
     "Reason": "ttest",
     "TTestResult": "ttest",
-    "TileTestKind": "ttest",
     "paired_from_stats": "ttest",
     "paired_ttest": "ttest",
     "pvalue_as_erf": "ttest",
@@ -95,7 +99,7 @@ _EXPORTS = {
     "VerdictReason": "verdict",
 }
 
-_SUBMODULES = frozenset(_EXPORTS.values()) | {"png", "sequential"}
+_SUBMODULES = frozenset(_EXPORTS.values()) | {"paired_test", "png", "sequential", "welch_test"}
 
 __all__ = sorted(_EXPORTS)
 

@@ -20,64 +20,28 @@ from dataclasses import dataclass
 import numpy as np
 
 from .decision import Evidence, Outcome, decide, equivalence_alpha
-from .diagnostics import MIN_PASSES_FOR_NORMALITY, normality, split_halves
+from .diagnostics import split_halves
 from .effect import Effect, effect_sizes
-from .errors import SeedOverlapError, WelchInputError, check_alpha
+from .errors import WelchInputError, check_alpha
 from .multitest import GlobalTest, bonferroni, bonferroni_p, combine_channels, global_test
-from .permutation import needs_resampling, permutation_max_t
-from .pixels import MIN_PIXEL_DF, PixelMoments, PixelUse, pixel_paired, pixel_use, pixel_welch
-from .tiles import TileStats, tile_row_blocks
-from .ttest import Reason, TileTestKind, TTestResult, paired_from_stats, welch_from_stats
+from .permutation import permutation_max_t
+from .pixels import PixelMoments, PixelUse, pixel_use
+from .tile_test import TileTest, TileTestMethod
+from .tile_tests import TileTestKind, choose_test
+from .tiles import TileStats
+from .ttest import Reason, TTestResult
 from .verdict import Verdict
 
 __all__ = [
-    "TESTS",
     "Comparison",
-    "TileTest",
+    "ScaleTests",
     "assess_scales",
-    "choose_test",
     "compare",
-    "identical_passes_of",
-    "differences_of",
-    "paired_differences",
     "pixel_share",
     "scale_factors",
-    "seed_relation",
+    "scale_tests",
     "selftest",
-    "test_tiles",
 ]
-
-TESTS = ("auto", *(test.value for test in TileTestKind))
-
-
-def seed_relation(ref_seeds, test_seeds) -> str:
-    """'disjoint', 'identical' (the same set of seeds) or 'overlap' (some shared, some not)."""
-    a, b = set(ref_seeds), set(test_seeds)
-    if not a or not b:
-        raise WelchInputError("seed lists must not be empty")
-    if a == b:
-        return "identical"
-    return "disjoint" if a.isdisjoint(b) else "overlap"
-
-
-def _choose_test(requested: str, relation: str, shared: int) -> TileTestKind:
-    if requested not in TESTS:
-        raise WelchInputError(f"`test_kind` must be one of {TESTS}, got {requested!r}")
-    if relation == "overlap":
-        raise SeedOverlapError(
-            f"the runs share {shared} seeds but not all: the unpaired test needs disjoint seeds and the paired "
-            "test identical ones; render one run again with a fitting seed range"
-        )
-    if requested == TileTestKind.WELCH and relation == "identical":
-        raise SeedOverlapError(
-            "the runs use identical seeds, so their passes are not independent: the unpaired Welch test would be "
-            "invalid; use the paired test"
-        )
-    if requested == TileTestKind.PAIRED and relation == "disjoint":
-        raise SeedOverlapError("the paired test needs the same seeds on both sides, but the seed lists are disjoint")
-    if requested == "auto":
-        return TileTestKind.PAIRED if relation == "identical" else TileTestKind.WELCH
-    return TileTestKind(requested)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -180,35 +144,6 @@ class Comparison:
         return sizes, pvalues
 
 
-@dataclass(frozen=True)
-class TileTest:
-    """The per-tile test of one scale before any decision: the t-test, which tiles are trusted, the means."""
-
-    kind: TileTestKind
-    result: TTestResult
-    suspect: np.ndarray  # tile-channels whose Welch samples are clearly not normal
-    checked: bool  # normality checked (enough passes)
-    ref_mean: np.ndarray
-    #: the variance of the reference mean's estimate, and its covariance with the mean difference's (-ref_var
-    #: for independent sides; paired, from the per-pass covariance): what a ratio's interval needs
-    ref_var: np.ndarray
-    cross: np.ndarray
-    #: paired runs: the tile-channels tested by Welch's test on the two sides instead (`test_tiles`)
-    unpaired: np.ndarray | None = None
-    #: paired runs: the tile-channels whose per-pass differences are mostly exact zeros (`SPARSE_SHARE`)
-    sparse: np.ndarray | None = None
-    #: the tile-channels tested by their pixel variances (`welch_core.pixels`); None where the test did not run
-    pixel: np.ndarray | None = None
-    #: g1² + |g2| of the samples `suspect` judged (`diagnostics.Normality.excess`): a suspect tile-channel is
-    #: trusted again at passes where this over the passes is at most `diagnostics.SHAPE_LIMIT` (`sizing`)
-    excess: np.ndarray | None = None
-
-    @property
-    def welch(self) -> np.ndarray | bool:
-        """Where the result is Welch's test: everywhere (disjoint seeds), or a paired run's `unpaired` tiles."""
-        return True if self.kind == TileTestKind.WELCH else (self.unpaired if self.unpaired is not None else False)
-
-
 def scale_factors(run: TileStats, tile: int | None = None) -> list[int]:
     """The factors of the stored tile that give the tested scales: 1, 2, 4, ... up to the one whose single tile
     covers the whole image (the tiles at the right and bottom edges partial where a factor does not divide the
@@ -226,151 +161,9 @@ def scale_factors(run: TileStats, tile: int | None = None) -> list[int]:
     return factors
 
 
-#: A relative difference below this is the size of float rounding (float32: 2^-24, 6e-8, per operation; a path is
-#: some hundreds of them), not a difference of the light. Two processes of one build can render the same passes
-#: with different last bits (Cycles 4.5.4 always; 5.0.1's textured scene in a few tiles, the same in every pass).
-ROUNDING = 1e-6
 #: The smallest tolerance: a claim within less than ten times float rounding would rest on differences it counts
 #: as none.
 MIN_TOLERANCE = 1e-5
-
-#: Paired differences exactly zero in at least this share of the passes are "mostly exact zeros": a change that
-#: alters a few light paths, its own case in the diagnostics (not fireflies), whichever test the tile gets.
-SPARSE_SHARE = 0.5
-
-
-def test_tiles(
-    ref: TileStats, test: TileStats, kind: str, pvalue_method: str = "exact", pixels: bool = False,
-    pairs: PixelMoments | None = None,
-) -> TileTest:  # fmt: skip
-    """Welch's test (disjoint seeds) or the paired test (identical seeds) per tile and channel, with the
-    normality check of the Welch samples (of each side, or of the per-pass differences).
-
-    With `pixels` (runs that keep pixel moments, see `welch_core.pixels`; paired runs: `pairs`, the moments of each
-    pixel's difference per seed): each tile-channel whose pixel test has at least `MIN_PIXEL_DF` degrees of freedom
-    takes that test's result instead (its variance from the pixels); the others keep the test on the tile sums,
-    but while the normality of the tile sums can't be checked (fewer than `MIN_PASSES_FOR_NORMALITY` passes), a
-    tile-channel whose pixel test has fewer degrees of freedom is not trusted: a few pixels carry its variance,
-    so its tile sums are far from normal (a caustic), and Welch's t on 2-7 of them is not calibrated there (a
-    glass caustic at 3 v 3 passes: `biased` in 1.7 % of unbiased splits at alpha 1 %, every rejection such a
-    tile's).
-
-    Paired runs: where the per-pass differences are clearly not normal but each side's own samples are (a change
-    that alters a few light paths: differences exactly zero in most passes and large in a few), the tile-channel
-    is tested by Welch's test on the two sides instead, as if their passes were independent. With the same seeds
-    the sides are positively correlated, so Var(test) + Var(ref) overstates the variance of the difference and
-    the test is conservative; it sees what an unpaired test sees, where the paired one would see nothing. Only
-    where the sides' sample covariance is positive: with a negative one Welch's variance would understate it.
-    """
-    with np.errstate(invalid="ignore", divide="ignore"):
-        ref_var = ref.variance / ref.n
-    of_ref, of_test = normality(ref), normality(test)
-    own = of_ref.suspect | of_test.suspect
-    own_excess = np.fmax(of_ref.excess, of_test.excess)
-    fields = [f.name for f in dataclasses.fields(TTestResult)]
-    if kind == TileTestKind.PAIRED:
-        diffs = paired_differences(ref, test, pairs)
-        result = paired_from_stats(diffs.mean, diffs.variance, diffs.n, pvalue_method=pvalue_method)
-        use = np.zeros(result.pvalue.shape, bool)
-        few = np.zeros(result.pvalue.shape, bool)
-        if pixels and diffs.pixels is not None:
-            result, use, few = _take_pixels(result, pixel_paired(diffs, pvalue_method))
-        # cov(d, r) per pass from Var(test) = Var(ref) + Var(d) + 2 cov(d, r), over the passes' count
-        with np.errstate(invalid="ignore", divide="ignore"):
-            cross = (test.variance - ref.variance - diffs.variance) / (2.0 * diffs.n)
-            sides = test.variance + ref.variance - diffs.variance  # 2 cov(test, ref) per pass
-        of_diffs = normality(diffs)
-        suspect, excess = of_diffs.suspect | (few & (diffs.n < MIN_PASSES_FOR_NORMALITY)), of_diffs.excess
-        unpaired = suspect & ~own & (sides > 0)
-        if unpaired.any():
-            welch = welch_from_stats(
-                ref.mean, ref.variance, ref.n, test.mean, test.variance, test.n, pvalue_method=pvalue_method
-            )
-            result = TTestResult(**{f: np.where(unpaired, getattr(welch, f), getattr(result, f)) for f in fields})
-            cross = np.where(unpaired, -ref_var, cross)
-            suspect, excess = suspect & ~unpaired, np.where(unpaired, own_excess, excess)
-        checked = diffs.n >= MIN_PASSES_FOR_NORMALITY
-        sparse = (diffs.sums == 0).mean(axis=0) >= SPARSE_SHARE if diffs.n else np.zeros_like(suspect)
-        pixel = use & ~unpaired if pixels else None
-        return TileTest(kind, result, suspect, checked, ref.mean, ref_var, cross, unpaired, sparse & checked, pixel,
-                        excess)  # fmt: skip
-    result = welch_from_stats(
-        ref.mean, ref.variance, ref.n, test.mean, test.variance, test.n, pvalue_method=pvalue_method
-    )
-    result = _rounding_is_no_difference(result, ref.mean)
-    checked = min(ref.n, test.n) >= MIN_PASSES_FOR_NORMALITY
-    if not pixels:
-        return TileTest(kind, result, own, checked, ref.mean, ref_var, -ref_var, excess=own_excess)
-    result, use, few = _take_pixels(result, pixel_welch(ref, test, pvalue_method))
-    ref_var = np.where(use, ref.pixel_terms()[0] / ref.n, ref_var)
-    suspect = own | (few & ~checked)
-    return TileTest(kind, result, suspect, checked, ref.mean, ref_var, -ref_var, pixel=use, excess=own_excess)
-
-
-def _rounding_is_no_difference(result: TTestResult, ref_mean: np.ndarray) -> TTestResult:
-    """`result` with each deterministic difference of Welch's test (both sides constant) no larger than float
-    rounding of the tile's value (`ROUNDING`) counted as no difference (ZERO_VARIANCE): it is the arithmetic's, not
-    the light's, and would otherwise be `biased` at any size. (Paired passes: `paired_differences` zeroes such a
-    difference pass by pass.)"""
-    with np.errstate(invalid="ignore"):
-        rounding = (result.reason == Reason.DETERMINISTIC_DIFFERENCE) & (
-            np.abs(result.mean_difference) <= ROUNDING * np.abs(ref_mean)
-        )
-    if not rounding.any():
-        return result
-    return dataclasses.replace(result, reason=np.where(rounding, Reason.ZERO_VARIANCE, result.reason).astype(np.uint8))
-
-
-def _take_pixels(result: TTestResult, by_pixels: TTestResult) -> tuple[TTestResult, np.ndarray, np.ndarray]:
-    """`result` with the pixel test's `by_pixels` where that is valid with at least `MIN_PIXEL_DF` degrees of
-    freedom, where that is, and where the pixel test is valid with fewer (a few pixels carry the variance)."""
-    valid = by_pixels.reason == Reason.VALID
-    with np.errstate(invalid="ignore"):
-        use = valid & (by_pixels.df >= MIN_PIXEL_DF)
-    fields = (f.name for f in dataclasses.fields(TTestResult))
-    taken = TTestResult(**{f: np.where(use, getattr(by_pixels, f), getattr(result, f)) for f in fields})
-    return taken, use, valid & ~use
-
-
-def paired_differences(ref: TileStats, test: TileStats, pairs: PixelMoments | None = None) -> TileStats:
-    """The per-pass differences test - reference of two runs with the same seeds, in the reference's order, with
-    `pairs`, the moments of each pixel's difference over those seeds, where given. A pass's difference no larger
-    than float rounding of its tile sum (`ROUNDING`) is zero: passes that differ only in their last bits are the
-    same passes, not a change that alters a few light paths."""
-    if test.seeds == ref.seeds:
-        test_sums = test.sums
-    else:
-        order = {seed: i for i, seed in enumerate(test.seeds)}
-        test_sums = test.sums[[order[s] for s in ref.seeds]]
-    differences = test_sums - ref.sums
-    for rows in tile_row_blocks(differences):  # a block at a time: no temporaries the size of the sums
-        d = differences[:, rows]
-        with np.errstate(invalid="ignore"):
-            d[np.abs(d) <= ROUNDING * np.abs(ref.sums[:, rows])] = 0.0
-    return TileStats.from_sums(
-        differences, ref.seeds, ref.height, ref.width, ref.tile, edges=ref.edges, covered=ref.covered,
-        pixels=pairs,
-    )  # fmt: skip
-
-
-def identical_passes_of(ref: TileStats, test: TileStats, kind: str) -> bool:
-    """Whether every pass of `test` equals the reference's pass of the same seed in every tile sum (the paired
-    case; disjoint seeds are never identical passes). Two runs with identical passes that were also made the
-    same way (the same configuration) are one run compared with itself: refused, as that is a mistake and not
-    evidence that two settings agree."""
-    if kind != TileTestKind.PAIRED:
-        return False
-    if test.seeds == ref.seeds:
-        same = bool(np.array_equal(test.sums, ref.sums, equal_nan=True))
-    else:
-        order = {seed: i for i, seed in enumerate(test.seeds)}
-        same = bool(np.array_equal(test.sums[[order[s] for s in ref.seeds]], ref.sums, equal_nan=True))
-    if same and ref.info.identity() == test.info.identity():
-        raise WelchInputError(
-            "the two runs hold the same passes and were made the same way (a run compared with itself): compare "
-            "it with a run rendered with other seeds or settings, or run selftest on it"
-        )
-    return same
 
 
 def compare(
@@ -425,7 +218,7 @@ def compare(
     alpha = check_alpha(alpha)
     tolerance = check_tolerance(tolerance)
     start = scale_tests(ref, test, alpha, test_kind, pvalue_method, tile, pixel_variance, pairs)
-    kind, scales, tests, runs = start.kind, start.scales, start.tests, start.runs
+    scales, tests, runs = start.scales, start.tests, start.runs
     claim = check_claim_tile(equivalence_tile, scales, tolerance)
     count = len(scales)
     with np.errstate(invalid="ignore"):
@@ -434,7 +227,7 @@ def compare(
     p_values = [s.p_value for s in scales if np.isfinite(s.p_value)]
     p_value = bonferroni_p(min(p_values), count) if p_values else float("nan")
     resampling = None
-    if needs_resampling(kind, ref.n, test.n):
+    if start.method.needs_resampling(ref.n, test.n):
         # Different pass counts: `biased` needs the permutation test too (an intersection of two rejections), and
         # a tile-channel is significant where both families reject it.
         resampling = permutation_max_t(runs, alpha)
@@ -460,15 +253,6 @@ def compare(
     return dataclasses.replace(
         finest, p_value=p_value, scales=scales, uncovered=start.uncovered, outcome=outcome, pixel_use=use
     )
-
-
-def differences_of(ref: TileStats, test: TileStats, kind: str, pairs: PixelMoments | None) -> TileStats | None:
-    """A paired run's per-seed differences with their pixel moments (None where there are none to test)."""
-    if kind != TileTestKind.PAIRED or pairs is None:
-        return None
-    if pairs.n != ref.n or pairs.shape != (ref.height, ref.width, ref.channels):
-        raise WelchInputError(f"`pairs` must be the moments of the {ref.n} paired passes' differences, got {pairs.n}")
-    return paired_differences(ref, test, pairs)
 
 
 def pixel_share(use: PixelUse, tests) -> PixelUse:
@@ -516,10 +300,10 @@ def check_claim_tile(equivalence_tile, scales, tolerance) -> int | None:
 @dataclass(frozen=True)
 class ScaleTests:
     """What `compare` and a look of a check (`welch_core.looks.sequential_look`) both start from: the tile test
-    their seeds call for (`kind`), whether every pass is identical on both sides, where the pixel test is used,
+    their seeds call for (`method`), whether every pass is identical on both sides, where the pixel test is used,
     every scale's comparison, tile test and runs, the finest tiles no scale tests, and the whole image's test."""
 
-    kind: TileTestKind
+    method: TileTestMethod
     identical: bool
     pixel_use: PixelUse
     scales: tuple
@@ -535,35 +319,30 @@ def scale_tests(
 ) -> ScaleTests:  # fmt: skip
     """The runs tested at every scale (see `compare` for the arguments): the one start of every decision."""
     ref.same_grid(test)
-    kind = choose_test(ref, test, test_kind)
-    identical = identical_passes_of(ref, test, kind)
-    use = pixel_use(ref, test, kind, pixel_variance, differences_of(ref, test, kind, pairs))
-    scales, tests, runs, uncovered = assess_scales(ref, test, kind, pvalue_method, alpha, tile, use.used, pairs)
-    whole = test_tiles(ref.whole(), test.whole(), kind, pvalue_method)
-    return ScaleTests(kind, identical, use, scales, tests, runs, uncovered, whole)
+    method = choose_test(ref, test, test_kind)
+    identical = method.identical_passes(ref, test)
+    use = pixel_use(ref, test, method, pixel_variance, method.differences(ref, test, pairs))
+    scales, tests, runs, uncovered = assess_scales(ref, test, method, pvalue_method, alpha, tile, use.used, pairs)
+    whole = method.test(ref.whole(), test.whole(), pvalue_method)
+    return ScaleTests(method, identical, use, scales, tests, runs, uncovered, whole)
 
 
 def assess_scales(
-    ref: TileStats, test: TileStats, kind: str, pvalue_method: str, alpha: float, tile=None, pixels: bool = False,
-    pairs: PixelMoments | None = None,
+    ref: TileStats, test: TileStats, method: TileTestMethod, pvalue_method: str, alpha: float, tile=None,
+    pixels: bool = False, pairs: PixelMoments | None = None,
 ):  # fmt: skip
     """Every scale tested on its own: (the scales' comparisons, their tile tests, their (reference, test) runs,
-    the finest tiles no scale can test). `compare` and the looks decide from them; `pixels`: see `test_tiles`."""
+    the finest tiles no scale can test). `compare` and the looks decide from them; `pixels`: see
+    `TileTestMethod.test`."""
     tests, scales, runs = [], [], []
     a, b, done = ref, test, 1
     for f in scale_factors(ref, tile):  # one scale at a time from the one before (factors 1, 2, 4, ...)
         if f != done:
             a, b, done = a.retile(f // done), b.retile(f // done), f
         runs.append((a, b))
-        tests.append(test_tiles(a, b, kind, pvalue_method, pixels, pairs))
+        tests.append(method.test(a, b, pvalue_method, pixels, pairs))
         scales.append(_scale(a, b, tests[-1], pvalue_method, alpha))
     return tuple(scales), tests, runs, _uncovered(scales[0], scales)
-
-
-def choose_test(ref: TileStats, test: TileStats, test_kind: str = "auto") -> TileTestKind:
-    """ "welch" or "paired" for these runs' seeds (see `compare`); raises when the seeds fit neither."""
-    relation = seed_relation(ref.seeds, test.seeds)
-    return _choose_test(test_kind, relation, len(set(ref.seeds) & set(test.seeds)))
 
 
 def _scale(ref, test, tested: TileTest, pvalue_method, alpha) -> Comparison:

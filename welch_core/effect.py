@@ -31,7 +31,7 @@ class Effect:
 def effect_sizes(tested, alpha: float, n_tests: int) -> Effect:
     """Relative effect sizes with pointwise (1 - alpha) intervals (`relative_interval`) and the minimum
     detectable bias, which uses the Bonferroni level alpha / n_tests that a tile must reach to flag on its own.
-    `tested` is a `comparison.TileTest`."""
+    `tested` is a `tile_test.TileTest`."""
     result, scale = tested.result, np.abs(tested.ref_mean)
     low, high = relative_interval(tested, alpha)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -51,7 +51,7 @@ def relative_interval(tested, level) -> tuple[np.ndarray, np.ndarray]:
         (d - theta r)^2 <= q^2 (V_dd - 2 theta V_dr + theta^2 V_rr)
 
     for the mean difference d = mean_test - mean_ref, the reference mean r, the variances and covariance of their
-    estimates V (`comparison.TileTest`), and the t quantile q at the element's degrees of freedom. Each end is the
+    estimates V (`tile_test.TileTest`), and the t quantile q at the element's degrees of freedom. Each end is the
     boundary of an exact one-sided test of the ratio (for normal Welch samples), which makes the two one-sided
     tests of `equivalent` exact too. Dividing d's interval by |r| instead ignores the reference's uncertainty:
     1.04x the stated error rate at a 2 % tolerance with equal variances, and far more in a paired test whose

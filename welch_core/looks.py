@@ -52,14 +52,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .comparison import TileTest, check_claim_tile, check_tolerance, pixel_share, scale_tests
+from .comparison import check_claim_tile, check_tolerance, pixel_share, scale_tests
 from .decision import Claim, Evidence, Outcome, decide, equivalence_alpha, identical_passes
 from .effect import DETECTION_POWER
 from .errors import WelchInputError, check_alpha, check_int
 from .multitest import bonferroni
-from .permutation import needs_resampling, permutation_max_t
+from .permutation import permutation_max_t
 from .pixels import PIXEL_MODES, PixelMoments, PixelUse
 from .sequential import SPENDING, boundaries, nominal_levels
+from .tile_test import TileTest
 from .tiles import TileStats
 from .ttest import Reason, pvalue_exact
 from .verdict import Verdict
@@ -326,7 +327,7 @@ def sequential_look(
     """
     fractions = np.asarray(fractions, dtype=float)
     start = scale_tests(ref, test, plan.alpha, plan.test_kind, pixel_variance=plan.pixel_variance, pairs=pairs)
-    kind, scales, tests, runs, whole = start.kind, start.scales, start.tests, start.runs, start.whole
+    method, scales, tests, runs, whole = start.method, start.scales, start.tests, start.runs, start.whole
     n = min(ref.n, test.n)
     if any(np.any(t.welch) for t in (*tests, whole)):  # Welch's test somewhere (a paired run's sparse tiles too)
         tests = [conservative(t, n) if np.any(t.welch) else t for t in tests]
@@ -356,7 +357,7 @@ def sequential_look(
             if ratio > best[0]:
                 best = (float(ratio), float(np.nanmin(p)), float(level))
     resampling = None
-    if needs_resampling(kind, ref.n, test.n) and crossed:
+    if method.needs_resampling(ref.n, test.n) and crossed:
         # Different pass counts (a fixed reference): a crossing counts where the permutation test, at this look's
         # increment of the spending, rejects the tile-channel too (see `resampling_level`).
         level = resampling_level(fractions, plan)

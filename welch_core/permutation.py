@@ -42,9 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from .ttest import TileTestKind
-
-__all__ = ["MAX_RESAMPLES", "RESAMPLES_PER_LEVEL", "Resampling", "needs_resampling", "permutation_max_t"]
+__all__ = ["MAX_RESAMPLES", "RESAMPLES_PER_LEVEL", "Resampling", "permutation_max_t"]
 
 #: Resamples drawn for a test at `level`: this many over the level (999 at 0.01), so that a p-value well under the
 #: level is found under it with near certainty (the Monte Carlo error of p at the level is about 30 %).
@@ -92,11 +90,6 @@ class Resampling:
             "rejects": self.rejects,
             "limited": self.limited,
         }
-
-
-def needs_resampling(kind: str, n_ref: int, n_test: int) -> bool:
-    """Whether `biased` needs the permutation test's confirmation: Welch's test between different pass counts."""
-    return kind == TileTestKind.WELCH and n_ref != n_test
 
 
 def permutation_max_t(runs, level: float) -> Resampling:

@@ -52,7 +52,7 @@ import numpy.typing as npt
 
 from . import parallel
 from .errors import WelchInputError
-from .ttest import Reason, TileTestKind, TTestResult, paired_from_stats, two_sided_pvalue, welch_from_stats
+from .ttest import Reason, TTestResult, paired_from_stats, two_sided_pvalue, welch_from_stats
 
 __all__ = [
     "INDEPENDENT_PATTERNS",
@@ -597,18 +597,20 @@ def pixel_eligibility(info) -> str | None:
     return None
 
 
-def pixel_use(ref, test, kind: str, mode: str, differences=None) -> PixelUse:
+def pixel_use(ref, test, method, mode: str, differences=None) -> PixelUse:
     """Whether `ref` and `test` (`TileStats`) are tested by their pixel variances under `mode` (see
-    `PIXEL_MODES`), and why: the runs must keep pixel moments (a paired run: the moments of each pixel's
-    difference per seed, `differences`, a `TileStats` of the per-seed differences that keeps them), have two
+    `PIXEL_MODES`) and their tile test `method` (`welch_core.tile_test.TileTestMethod`), and why: the runs must
+    keep pixel moments (a paired run: the moments of each pixel's difference per seed, `differences`, a
+    `TileStats` of the per-seed differences that keeps them, `TileTestMethod.differences`), have two
     passes a side, be eligible by their records (`pixel_eligibility`, unless the user vouches with "on"), keep
     moments that can be those of their passes (`moment_conflict`), and pass the `tripwire`."""
     if mode not in PIXEL_MODES:
         raise WelchInputError(f"`pixel_variance` must be one of {PIXEL_MODES}, got {mode!r}")
     if mode == "off":
         return PixelUse(mode, False, "off (--pixel-variance off)")
-    if kind == TileTestKind.PAIRED and (differences is None or differences.pixels is None):
-        return PixelUse(mode, False, "the paired runs' per-seed pixel differences were not kept")
+    runs = method.pixel_runs(ref, test, differences)
+    if isinstance(runs, str):
+        return PixelUse(mode, False, runs)
     if ref.pixels is None or test.pixels is None:
         why = "a run keeps no pixel moments (made before they were kept, or it kept a pass with non-finite pixels)"
         return PixelUse(mode, False, why)
@@ -623,7 +625,7 @@ def pixel_use(ref, test, kind: str, mode: str, differences=None) -> PixelUse:
         conflict = moment_conflict(run)
         if conflict is not None:
             return PixelUse(mode, False, f"refused: the {side}'s pixel moments contradict its tile sums: {conflict[1]}")
-    measured = tripwire(differences) if kind == TileTestKind.PAIRED else tripwire(ref, test)
+    measured = tripwire(*runs)
     refusal = measured.refusal()
     if refusal is not None:
         return PixelUse(mode, False, refusal, ratio=measured.ratio)

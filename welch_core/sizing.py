@@ -40,7 +40,7 @@ import math
 import numpy as np
 
 from .diagnostics import SHAPE_LIMIT
-from .ttest import Reason, TileTestKind
+from .ttest import Reason
 
 __all__ = ["MAX_PROJECTED", "SIZING_CHANCE", "bound_chance", "choose_claim", "passes_to_bound"]
 
@@ -78,7 +78,7 @@ class _Projection:
         se2 = tested.result.standard_error[valid] ** 2
         scale2 = tested.ref_mean[valid] ** 2
         with np.errstate(invalid="ignore", divide="ignore"):
-            if tested.kind == TileTestKind.PAIRED or n_ref == n_test:  # both sides grow: se^2 n / N
+            if tested.method.both_sides_grow(n_ref, n_test):  # se^2 n / N
                 self.fixed, self.growing = np.zeros_like(se2), se2 * n_test / scale2
             else:  # a fixed reference: only the test side's part shrinks
                 ref_part = np.minimum(tested.ref_var[valid], se2)

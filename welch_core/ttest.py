@@ -19,7 +19,6 @@ __all__ = [
     "PVALUE_METHODS",
     "Reason",
     "TTestResult",
-    "TileTestKind",
     "paired_from_stats",
     "paired_ttest",
     "pvalue_as_erf",
@@ -36,14 +35,6 @@ GAUSS_MIN_DF = 20.0
 #: p-value methods: exact Student t; the paper's Gaussian (eq. 5) where nu >= GAUSS_MIN_DF; the same with the
 #: Abramowitz-Stegun erf of eq. 6 (for comparison with the paper only).
 PVALUE_METHODS = ("exact", "gauss", "as_erf")
-
-
-class TileTestKind(enum.StrEnum):
-    """The test of a tile-channel's passes: Welch's t-test of two runs with disjoint seeds, or the paired t-test of
-    their per-pass differences where both runs have the same seeds (the value is its key in report files)."""
-
-    WELCH = "welch"
-    PAIRED = "paired"
 
 
 class Reason(enum.IntEnum):

@@ -164,12 +164,12 @@ def status_of(first: dict | None, confirm: dict | None) -> str:
 
 
 #: A relative difference below this wherever a check estimates one is the size of float rounding
-#: (`welch_core.comparison.ROUNDING`), not a difference of the light. Paired passes that are bit-identical but for
+#: (`welch_core.tile_test.ROUNDING`), not a difference of the light. Paired passes that are bit-identical but for
 #: rounding can still make a test see one where the rounding has a sign: Cycles 4.5.4 renders the same scene, seeds
 #: and settings twice with tile sums that differ in their last bits (also with one thread; 5.2.3 renders them
 #: bit-identically), and its audit confirmed 15 such cells. They are listed apart (`summary_of`'s ``rounding``),
 #: not as findings.
-ROUNDING = wc.comparison.ROUNDING
+ROUNDING = wc.tile_test.ROUNDING
 
 
 def rounding_only(*records: dict | None) -> bool:

@@ -15,6 +15,16 @@ from . import fmt
 
 Why = wc.VerdictReason  # why a verdict is what it is: each has its words below
 
+#: Each tile test's words (`welch_core.tile_tests`): its name in the method's sentence, and how it sees
+#: tile-channels whose difference no noise explains.
+TEST_WORDS = {
+    wc.TileTestKind.WELCH: ("Welch's t-test", "{count} tile-channels are constant on both sides but differ"),
+    wc.TileTestKind.PAIRED: (
+        "paired t-test on per-pass differences",
+        "{count} tile-channels differ by the same amount in every pass",
+    ),
+}
+
 
 def where(d: dict[str, Any], outcome: dict[str, Any] | None = None) -> str:
     """'R of the 16x16 tile at x 32, y 48' (its true size at a partial edge), or 'R of the whole image' where
@@ -96,9 +106,7 @@ def _identical_share(outcome: dict[str, Any]) -> str:
 
 def deterministic(count: int, test: str) -> str:
     """Tile-channels whose difference no noise explains, as the test saw them."""
-    if test == wc.TileTestKind.PAIRED:
-        return f"{count} tile-channels differ by the same amount in every pass"
-    return f"{count} tile-channels are constant on both sides but differ"
+    return TEST_WORDS[test][1].format(count=count)
 
 
 def _biased_claim(outcome: dict[str, Any], text: str, whole: str | None) -> list[str]:
@@ -265,7 +273,7 @@ def method(
 ) -> str:  # fmt: skip
     """How the verdict was reached, in a sentence (`check`: the design of a check, see `summary.check_record`;
     `pixels`: whether tiles were tested by their pixel variances, `welch_core.PixelUse.to_json`)."""
-    name = "paired t-test on per-pass differences" if outcome["test"] == wc.TileTestKind.PAIRED else "Welch's t-test"
+    name = TEST_WORDS[outcome["test"]][0]
     sizes = ", ".join(str(s["tile"]) for s in outcome["scales"])
     if outcome["design"] == "sequential":
         text = (

@@ -1,18 +1,16 @@
 """The tool with one piece switched off: a what-if, or the tool as it was before a change, measured beside the
-tool as it is. Each replaces one function of welch_core inside a ``with`` block and puts it back after.
+tool as it is. Each replaces one function of welch_core, or registers a variant of a tile test, inside a ``with``
+block and puts it back after.
 
 A replacement has to be made in the module that looks the function up, so this is the one module of the benchmarks
-that uses welch_core's modules (``welch_core.looks``, ``welch_core.comparison``, which the package serves as
-attributes) instead of its top-level names; it uses their public names only. Everything else of the charts and the
-studies goes through welch_core's top-level names.
+that uses welch_core's modules (``welch_core.looks``, ``welch_core.welch_test``, ``welch_core.paired_test``, which
+the package serves as attributes) instead of its top-level names; it uses their public names only. Everything else
+of the charts and the studies goes through welch_core's top-level names.
 """
 
 from __future__ import annotations
 
 import contextlib
-import dataclasses
-
-import numpy as np
 
 import welch_core as wc
 
@@ -35,10 +33,11 @@ def without_permutation():
     """Within: the tool as it was before the permutation test: Welch's t-tests alone decide `biased` whatever the
     pass counts (the "before" of `benchmarks.studies.unequal`)."""
 
-    def never(*args):
-        return False
+    class WelchAlone(wc.welch_test.WelchTest):
+        def needs_resampling(self, n_ref, n_test):
+            return False
 
-    with _replaced(wc.comparison, "needs_resampling", never), _replaced(wc.looks, "needs_resampling", never):
+    with _registered(WelchAlone(wc.TileTestKind.WELCH)):
         yield
 
 
@@ -46,26 +45,23 @@ def without_permutation():
 def paired_alone():
     """Within: `compare` without the Welch rule: a paired tile-channel whose differences are not normal stays
     untrusted (the "paired alone" of `benchmarks.studies.sparse`)."""
-    original = wc.comparison.test_tiles
 
-    def without_welch(ref, test, kind, pvalue_method="exact", pixels=False, pairs=None):
-        tested = original(ref, test, kind, pvalue_method, pixels, pairs)
-        if tested.unpaired is None or not tested.unpaired.any():
-            return tested
-        diffs = wc.comparison.paired_differences(ref, test)
-        paired = wc.paired_from_stats(diffs.mean, diffs.variance, diffs.n, pvalue_method=pvalue_method)
-        where = tested.unpaired
-        fields = (f.name for f in dataclasses.fields(wc.TTestResult))
-        result = wc.TTestResult(**{f: np.where(where, getattr(paired, f), getattr(tested.result, f)) for f in fields})
-        with np.errstate(invalid="ignore", divide="ignore"):
-            cross = (test.variance - ref.variance - diffs.variance) / (2.0 * diffs.n)
-        cross = np.where(where, cross, tested.cross)
-        return dataclasses.replace(
-            tested, result=result, suspect=tested.suspect | where, cross=cross, unpaired=np.zeros_like(where)
-        )
+    class PairedAlone(wc.paired_test.PairedTest):
+        welch_rule = False
 
-    with _replaced(wc.comparison, "test_tiles", without_welch):
+    with _registered(PairedAlone(wc.TileTestKind.PAIRED)):
         yield
+
+
+@contextlib.contextmanager
+def _registered(method):
+    """`method` is the registered tile test of its kind within (`welch_core.tile_tests.TILE_TESTS`)."""
+    saved = wc.TILE_TESTS[method.kind]
+    wc.TILE_TESTS[method.kind] = method
+    try:
+        yield
+    finally:
+        wc.TILE_TESTS[method.kind] = saved
 
 
 @contextlib.contextmanager

@@ -193,3 +193,13 @@ def test_every_reason_of_a_verdict_has_its_words():
             assert f"VerdictReason.{reason.name}" in decided, reason
             if reason != wc.VerdictReason.NOTHING_FOUND:
                 assert f"Why.{reason.name}" in source, reason
+
+
+def test_every_tile_test_has_its_words():
+    """Each registered tile test (`welch_core.tile_tests.TILE_TESTS`) has a name in the method's sentence and its own
+    words for a difference no noise explains."""
+    assert set(words.TEST_WORDS) == set(wc.TILE_TESTS) == set(wc.TileTestKind)
+    assert len({name for name, _ in words.TEST_WORDS.values()}) == len(wc.TileTestKind)
+    for kind in wc.TileTestKind:
+        assert words.deterministic(3, kind).startswith("3 tile-channels "), kind
+        assert words.deterministic(3, kind.value) == words.deterministic(3, kind)  # report files hold the value

@@ -179,7 +179,7 @@ def test_a_difference_of_float_rounding_is_no_difference():
     """Two processes of one build can render the same passes with different last bits (Cycles 4.5.4; 5.0.1's
     textured scene in a few tiles, the same in every pass): no `biased` for that, constant tiles or paired passes,
     while a constant difference of 1e-5 (ten times `ROUNDING`) is still one."""
-    from welch_core.comparison import ROUNDING
+    from welch_core.tile_test import ROUNDING
 
     rng = np.random.default_rng(42)
     sums = tile_sum_samples(rng, 48, scene_means(2, 3))

@@ -5,17 +5,18 @@ from numpy.testing import assert_allclose
 from scipy import optimize, stats
 
 from welch_core import Effect, TileStats, compare, effect_sizes, welch_from_stats
-from welch_core.comparison import TileTest
 from welch_core.effect import DETECTION_POWER, relative_interval
+from welch_core.tile_test import TileTest
+from welch_core.tile_tests import tile_test_of
 
 
 def welch_tested(ref_mean, ref_var, n_ref, test_mean, test_var, n_test, known_reference=False):
-    """Welch's test as `comparison.test_tiles` makes it, from summary statistics; `known_reference`: the
+    """Welch's test as `welch_test.WelchTest` makes it, from summary statistics; `known_reference`: the
     reference mean is taken as exact (no variance of its estimate)."""
     result = welch_from_stats(ref_mean, ref_var, n_ref, test_mean, test_var, n_test)
     ref_mean = np.broadcast_to(np.asarray(ref_mean, dtype=float), result.pvalue.shape)
     v = np.zeros(ref_mean.shape) if known_reference else np.broadcast_to(np.asarray(ref_var) / n_ref, ref_mean.shape)
-    return TileTest("welch", result, np.zeros(ref_mean.shape, bool), True, ref_mean, v, -v)
+    return TileTest(tile_test_of("welch"), result, np.zeros(ref_mean.shape, bool), True, ref_mean, v, -v)
 
 
 def fieller_by_root_finding(d, r, v_dd, v_dr, v_rr, q):

@@ -12,7 +12,8 @@ from scipy import stats
 from welch_core import SequentialPlan, TileStats, compare, look_schedule, sequential_look
 from welch_core.comparison import assess_scales
 from welch_core.looks import information_fraction, resampling_level, spent
-from welch_core.permutation import RESAMPLES_PER_LEVEL, needs_resampling, permutation_max_t
+from welch_core.permutation import RESAMPLES_PER_LEVEL, permutation_max_t
+from welch_core.tile_tests import tile_test_of
 
 
 def run(sums, first_seed=0, tile=8):
@@ -21,7 +22,7 @@ def run(sums, first_seed=0, tile=8):
 
 
 def runs_of(ref, test):
-    return assess_scales(ref, test, "welch", "exact", 0.01)[2]
+    return assess_scales(ref, test, tile_test_of("welch"), "exact", 0.01)[2]
 
 
 def skewed_sums(rng, n, shape=(4, 4, 3)):
@@ -83,8 +84,9 @@ def test_a_clear_difference_at_unequal_counts_is_biased_and_an_unbiased_pair_sto
 
 
 def test_equal_counts_and_paired_runs_need_no_resampling():
-    assert needs_resampling("welch", 4, 256) and needs_resampling("welch", 256, 8)
-    assert not needs_resampling("welch", 32, 32) and not needs_resampling("paired", 32, 32)
+    welch, paired = tile_test_of("welch"), tile_test_of("paired")
+    assert welch.needs_resampling(4, 256) and welch.needs_resampling(256, 8)
+    assert not welch.needs_resampling(32, 32) and not paired.needs_resampling(32, 32)
     rng = np.random.default_rng(5)
     c = compare(run(rng.normal(100, 5, (8, 2, 2, 3))), run(rng.normal(100, 5, (8, 2, 2, 3)), 100))
     assert c.outcome.resampling is None and c.outcome.to_json()["resampling"] is None

@@ -266,7 +266,7 @@ def test_tile_channels_below_the_df_floor_keep_the_tile_test():
     images[:, :TILE, :TILE] = 1.0
     images[0, 2, 3] = 500.0  # one firefly carries the tile: Satterthwaite's df collapses
     ref, test = run_of(images[:2], range(2)), run_of(images[2:], range(2, 4))
-    tested = wc.comparison.test_tiles(ref, test, "welch", pixels=True)
+    tested = wc.tile_tests.test_tiles(ref, test, "welch", pixels=True)
     welch = wc.welch_from_stats(ref.mean, ref.variance, 2, test.mean, test.variance, 2)
     by_pixels = pixel_welch(ref, test)
     assert by_pixels.df[0, 0, 0] < MIN_PIXEL_DF and not tested.pixel[0, 0, 0]
@@ -323,7 +323,7 @@ def paired_runs(rng, n, shift=0.0):
 
 def test_the_paired_statistic_equals_a_direct_computation_with_scipy():
     ref, test, pairs, ref_images, test_images = paired_runs(np.random.default_rng(15), 3)
-    result = pixel_paired(wc.comparison.paired_differences(ref, test, pairs))
+    result = pixel_paired(wc.paired_test.paired_differences(ref, test, pairs))
     d = test_images - ref_images
     for r, c, ch in [(0, 0, 0), (2, 1, 2)]:
         box = d[:, r * TILE : (r + 1) * TILE, c * TILE : (c + 1) * TILE, ch]
@@ -404,11 +404,10 @@ def test_why_it_did_not_run_is_said():
     assert wc.compare(ref, test, pixel_variance="off").pixel_use.reason == "off (--pixel-variance off)"
     same = run_of(noisy(rng, 3), range(3))
     assert wc.compare(ref, same).pixel_use is not None
-    assert (
-        wc.pixel_use(ref, same, "paired", "auto").reason == "the paired runs' per-seed pixel differences were not kept"
-    )
+    paired = wc.tile_test_of("paired")
+    assert wc.pixel_use(ref, same, paired, "auto").reason == "the paired runs' per-seed pixel differences were not kept"
     plain = wc.TileStats.from_sums(test.sums, test.seeds, SIZE, SIZE, TILE, CYCLES)
-    assert wc.pixel_use(ref, plain, "welch", "auto").reason == (
+    assert wc.pixel_use(ref, plain, wc.tile_test_of("welch"), "auto").reason == (
         "a run keeps no pixel moments (made before they were kept, or it kept a pass with non-finite pixels)"
     )
     other = run_of(noisy(rng, 3), range(3, 6), dataclasses.replace(CYCLES, renderer="mine", scene_id=""))
@@ -538,7 +537,7 @@ def test_the_looks_keep_the_pixel_df_and_say_what_they_used():
     plan = wc.SequentialPlan(max_passes=16, pixel_variance="auto")
     look = wc.sequential_look(ref, test, plan, [3 / 16])
     assert look.pixel_use.used and look.pixel_use.share > 0.9
-    tested = wc.comparison.test_tiles(ref, test, "welch", pixels=True)
+    tested = wc.tile_tests.test_tiles(ref, test, "welch", pixels=True)
     kept = wc.looks.conservative(tested, 3)
     np.testing.assert_array_equal(kept.result.df[tested.pixel], tested.result.df[tested.pixel])
     assert (kept.result.df[~tested.pixel & (tested.result.reason == 0)] == 2).all()

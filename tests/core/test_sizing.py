@@ -11,11 +11,11 @@ import pytest
 from scipy import special, stats
 
 from welch_core import SequentialPlan, TileStats, compare, information_fraction, look_schedule, sequential_look
-from welch_core.comparison import choose_test
-from welch_core.comparison import test_tiles as tile_test
 from welch_core.decision import FUTILITY_LOSS, identical_passes
 from welch_core.looks import promise
 from welch_core.sizing import PRECISION, SIZING_CHANCE, bound_chance, choose_claim, passes_to_bound
+from welch_core.tile_tests import choose_test
+from welch_core.tile_tests import test_tiles as tile_test
 from welch_core.ttest import Reason
 
 TILE = 16
@@ -30,7 +30,7 @@ def runs(rng, n, mean, sd, shift=1.0, seeds=0):
 
 def tile_test_of(rng, n, mean, sd):
     ref, test = runs(rng, n, mean, sd), runs(rng, n, mean, sd, seeds=10**6)
-    return tile_test(ref, test, choose_test(ref, test))
+    return choose_test(ref, test).test(ref, test)
 
 
 def test_the_chance_is_the_product_of_each_tile_channels_and_matches_a_simulation():

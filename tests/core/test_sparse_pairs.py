@@ -41,7 +41,7 @@ def sparse_pair(rng, n: int, shift: float = 0.0, sign: float = 1.0):
 
 def test_sparse_differences_are_tested_by_welch_on_the_two_sides():
     ref, test = sparse_pair(np.random.default_rng(1), 512, shift=8.0)
-    tested = wc.comparison.test_tiles(ref, test, "paired")
+    tested = wc.tile_tests.test_tiles(ref, test, "paired")
     assert tested.kind == "paired" and tested.unpaired.all()  # every tile-channel's differences are sparse
     assert not tested.suspect.any()
     # Those entries are exactly Welch's test of the two sides (raw path equals summary path).
@@ -64,7 +64,7 @@ def test_dense_paired_differences_are_not_called_sparse():
     rng = np.random.default_rng(7)
     sums = ref.sums * (1.0 + 0.001 * rng.standard_normal(ref.sums.shape))
     test = wc.TileStats.from_sums(sums, ref.seeds, ref.height, ref.width, ref.tile, info=wc.RunInfo(overrides=("k",)))
-    tested = wc.comparison.test_tiles(ref, test, "paired")
+    tested = wc.tile_tests.test_tiles(ref, test, "paired")
     assert not tested.sparse.any() and not tested.unpaired.any()
     assert all(s.sparse == 0 for s in wc.compare(ref, test, alpha=0.05).outcome.scales)
 
@@ -93,7 +93,7 @@ def test_anti_correlated_sides_are_not_tested_by_welch():
     """With negatively correlated sides Welch's variance would understate the difference's: those tiles stay
     untrusted."""
     ref, test = sparse_pair(np.random.default_rng(4), 512, sign=-1.0)
-    tested = wc.comparison.test_tiles(ref, test, "paired")
+    tested = wc.tile_tests.test_tiles(ref, test, "paired")
     assert not tested.unpaired.any()
 
 
