@@ -74,3 +74,18 @@ def test_no_module_imports_itself_through_others():
     """No import circle in the packages (lazy imports count: they only move the circle to the first call); the
     packages' __init__ re-exports count as imports of their submodules."""
     assert import_cycles(["welch_core", "batch", "blender_addon"]) == []
+
+
+def test_every_lazy_name_of_welch_core_is_imported_for_editors_where_it_is_defined():
+    """welch_core imports its names on first use (`_EXPORTS`); the imports under TYPE_CHECKING let an editor's
+    go-to-definition find each: the same names from the same modules, each defined there."""
+    import importlib
+
+    import welch_core
+
+    tree = ast.parse((ROOT / "welch_core" / "__init__.py").read_text())
+    (block,) = [n for n in tree.body if isinstance(n, ast.If) and ast.unparse(n.test) == "TYPE_CHECKING"]
+    shown = {a.name: node.module for node in block.body for a in node.names}
+    assert shown == welch_core._EXPORTS
+    for name, module in shown.items():
+        assert name in vars(importlib.import_module(f"welch_core.{module}")), (name, module)

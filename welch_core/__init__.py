@@ -5,12 +5,14 @@ After Jung, Hanika and Dachsbacher, "Detecting Bias in Monte Carlo Renderers usi
 
 Names are imported on first use (PEP 562), so code that only accumulates passes (``welch_core.tiles``,
 ``welch_core.formats``: numpy alone, as inside a stock Blender) never imports scipy, and a command that only
-reads a file starts fast.
+reads a file starts fast; the imports under TYPE_CHECKING show an editor where each name is defined.
 """
 
+# ruff: noqa: F401 (the imports under TYPE_CHECKING are there for editors, not used here)
 from __future__ import annotations
 
 import importlib
+from typing import TYPE_CHECKING
 
 #: Public name -> the submodule that defines it.
 _EXPORTS = {
@@ -98,6 +100,59 @@ _EXPORTS = {
     "Verdict": "verdict",
     "VerdictReason": "verdict",
 }
+
+if TYPE_CHECKING:  # each name where it is defined, for editors and type checkers (at run time: `__getattr__`)
+    from .colormap import (
+        MAP_MODES,
+        colorize,
+        difference_picture,
+        exposure,
+        histogram,
+        map_values,
+        overlay,
+        pvalue_rgb,
+        shrink,
+        tonemap,
+        upscale_tiles,
+    )
+    from .comparison import Comparison, compare, selftest
+    from .decision import Difference, Outcome, ScaleResult, identical_passes
+    from .diagnostics import Normality, normality, split_halves
+    from .effect import Effect, effect_sizes
+    from .errors import GridMismatchError, RunMismatchError, SeedOverlapError, StatsFileError, WelchInputError
+    from .exr import read_exr, read_exr_channels, read_exr_colour, write_exr
+    from .formats import load_layers, load_preview, load_stats, save_stats
+    from .layers import LayerFamily, LayerResult, compare_layers, component_sum_error
+    from .looks import Look, SequentialPlan, information_fraction, look_schedule, sequential_look
+    from .multitest import (
+        GlobalTest,
+        bh_qvalues,
+        bonferroni,
+        bonferroni_p,
+        combine_channels,
+        global_test,
+        holm,
+        uniformity_pvalue,
+    )
+    from .pixels import PIXEL_MODES, PixelMoments, PixelUse, pixel_eligibility, pixel_use
+    from .sequential import boundaries, nominal_levels
+    from .tile_test import TileTest, TileTestMethod
+    from .tile_tests import TESTS, TILE_TESTS, TileTestKind, seed_relation, tile_test_of
+    from .tiles import RunInfo, TileStats, tile_sums
+    from .ttest import (
+        PVALUE_METHODS,
+        Reason,
+        TTestResult,
+        paired_from_stats,
+        paired_ttest,
+        pvalue_as_erf,
+        pvalue_exact,
+        pvalue_gauss,
+        two_sided_pvalue,
+        welch_from_stats,
+        welch_ttest,
+    )
+    from .verdict import Verdict, VerdictReason
 
 _SUBMODULES = frozenset(_EXPORTS.values()) | {"paired_test", "png", "sequential", "welch_test"}
 
