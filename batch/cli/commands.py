@@ -129,6 +129,7 @@ def _add_check(sub) -> None:
     add_options(k, "check", ("resume",))
     add_options(k, "check", ("json_progress",))
     add_options(k, "check", ("out",))
+    add_options(k, "check")  # the rest of check's options: those declared since, in the declaration's order
 
 
 def _add_ingest(sub) -> None:

@@ -28,9 +28,6 @@ UNPAIRED_SEEDS = MAX_PASSES  # --max-passes is at most this
 #: Passes a side when neither --max-passes nor --max-seconds is given.
 DEFAULT_MAX_PASSES = default("max_passes", "check")
 
-#: Passes a side when neither --max-passes nor --max-seconds is given.
-DEFAULT_MAX_PASSES = default("max_passes", "check")
-
 #: Seeds a side may use under a time budget (the pass budget is fixed once the speed is known).
 MAX_SEEDS_FOR_SECONDS = 100_000
 

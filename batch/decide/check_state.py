@@ -18,6 +18,7 @@ from pathlib import Path
 from .._siblings import welch_core as wc
 from ..errors import BatchError
 from ..jobs.job import RenderJob
+from ..jobs.options import OPTIONS
 from ..jobs.seeds import parse_seeds
 
 STATE_FILE = "check.json"
@@ -140,20 +141,18 @@ def _grown_budget(check, plan: wc.SequentialPlan, budget: int) -> int:
 
 
 def _plan_difference(stored: wc.SequentialPlan, planned: wc.SequentialPlan) -> str:
-    """What differs between the design a check was started with and the one asked for, named by option."""
+    """What differs between the design a check was started with and the one asked for, named by option: the
+    plan's fields that are check's declared options."""
 
     def shown(name: str, value) -> str:
         if name == "futility":
             return "the futility stop" if value else "--no-futility"
         if name == "equivalence_tile":
             return "the claim sized for the budget" if value is None else f"--equivalence-tile {value}"
-        if name == "tolerance":
-            return "--tolerance off" if value is None else f"--tolerance {100 * value:g}%"
-        if name == "pixel_variance":
-            return f"--pixel-variance {value}"
-        return f"--{name} {value:g}"
+        option = OPTIONS[name]
+        return f"{option.flag} {option.show(value) if value is not None else 'off'}"
 
-    names = ("alpha", "tolerance", "equivalence_tile", "futility", "pixel_variance")
+    names = [f.name for f in dataclasses.fields(stored) if f.name in OPTIONS and "check" in OPTIONS[f.name].uses]
     differ = [n for n in names if getattr(stored, n) != getattr(planned, n)]
     return "; ".join(f"{shown(n, getattr(stored, n))}, not {shown(n, getattr(planned, n))}" for n in differ) or (
         "another design"

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import weakref
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -903,11 +904,16 @@ def to_argv(option: Option, value) -> list[str]:
     return [option.flag, text]
 
 
-def add_options(parser, command: str, dests: Iterable[str], side: str = "reference"):
+def add_options(parser, command: str, dests: Iterable[str] | None = None, side: str = "reference"):
     """Declare the options `dests` on `parser` as `command` takes them: flags, checks, defaults and help from
     the declaration. `side` ``test``: the test side's own (``--test-spp``, dest ``test_spp``; default None: the
-    reference's)."""
+    reference's). No `dests`: every option declared for `command` that no call before named, in the
+    declaration's order (an option declared for a command is on its parser without naming it there)."""
+    added = _ADDED.setdefault(parser, set())
+    if dests is None:
+        dests = [dest for dest, option in OPTIONS.items() if command in option.uses and (dest, side) not in added]
     for dest in dests:
+        added.add((dest, side))
         option = OPTIONS[dest]
         use = option.use(command)
         value = None if use.deferred else option.default_for(command)
@@ -947,6 +953,10 @@ def add_options(parser, command: str, dests: Iterable[str], side: str = "referen
         else:
             kwargs["default"] = value
         parser.add_argument(flag, **kwargs)
+
+
+#: The options each parser was given (`add_options`), by destination and side.
+_ADDED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def _case_options() -> tuple[Option, ...]:

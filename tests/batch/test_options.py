@@ -196,3 +196,15 @@ def test_the_smallest_tolerance_is_the_statistics_own():
     import welch_core.comparison
 
     assert options.MIN_TOLERANCE == welch_core.comparison.MIN_TOLERANCE
+
+
+def test_an_option_declared_for_a_command_is_on_its_parser_without_naming_it_there():
+    """`add_options(parser, command)` adds the options declared for `command` that no call before named, in the
+    declaration's order: what a new option of `check` needs of the command line is its declaration."""
+    parser = argparse.ArgumentParser()
+    options.add_options(parser, "check", ("alpha", "spp"))
+    options.add_options(parser, "check")
+    declared = [d for d, o in options.OPTIONS.items() if "check" in o.uses]
+    dests = [a.dest for a in parser._actions if a.dest != "help"]
+    assert dests[:2] == ["alpha", "spp"] and sorted(dests) == sorted(declared)
+    assert dests[2:] == [d for d in declared if d not in ("alpha", "spp")]
