@@ -222,6 +222,8 @@ class Evidence:
     #: the largest conditional power of a tile-channel of the `biased` family to cross its boundary by the budget
     #: under the bias the budget detects there (`looks.promise`; None: not computed, no futility stop)
     promise: float | None = None
+    #: the futility stop's price: it stops where `promise` is below this (`FUTILITY_LOSS` unless the plan says)
+    futility_loss: float = FUTILITY_LOSS
 
 
 @dataclass(frozen=True)
@@ -261,6 +263,7 @@ class Outcome:
     #: fixed design, or not chosen yet); `claim_tile` differs from it where the claim fell back to a coarser size
     target_tile: int | None = None
     promise: float | None = None  # `Evidence.promise` at this look
+    futility_loss: float = FUTILITY_LOSS  # `Evidence.futility_loss`: the most power the futility stop gives up
 
     @property
     def target(self) -> ScaleResult | None:
@@ -314,7 +317,7 @@ class Outcome:
             "budget": self.budget,
             "target_tile": self.target_tile,
             "promise": self.promise,
-            "futility_loss": FUTILITY_LOSS,
+            "futility_loss": self.futility_loss,
         }
 
 
@@ -439,6 +442,7 @@ def decide(scales, tests, runs, evidence: Evidence, alpha: float, tolerance: flo
         budget=evidence.budget,
         target_tile=target_tile,
         promise=evidence.promise,
+        futility_loss=evidence.futility_loss,
     )
 
 
@@ -480,13 +484,14 @@ def _sized(claim: Claim, results, evidence: Evidence, enough: bool) -> int | Non
 def _futile(claimed: ScaleResult | None, bounded: bool, evidence: Evidence, tolerance: float | None, n: int) -> bool:
     """Whether a check stops for futility (see the module docstring): a look before the last, with a tolerance,
     from FUTILITY_PASSES passes a side on, whose claim is out of the budget's reach at the current estimates while
-    no tile-channel's conditional power to reach `biased` by the budget is FUTILITY_LOSS or more."""
+    no tile-channel's conditional power to reach `biased` by the budget is `Evidence.futility_loss` (by default
+    FUTILITY_LOSS) or more."""
     if tolerance is None or evidence.budget is None or evidence.final or claimed is None or bounded:
         return False
     if n < FUTILITY_PASSES or evidence.promise is None or claimed is None:
         return False
     out_of_reach = claimed.passes_needed is None or claimed.passes_needed > evidence.budget
-    return out_of_reach and evidence.promise < FUTILITY_LOSS
+    return out_of_reach and evidence.promise < evidence.futility_loss
 
 
 def _projected(scale, tested, level: float, tolerance: float | None, floor: int) -> int | None:

@@ -53,7 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .comparison import check_claim_tile, check_tolerance, pixel_share, scale_tests
-from .decision import Claim, Evidence, Outcome, decide, equivalence_alpha, identical_passes
+from .decision import FUTILITY_LOSS, Claim, Evidence, Outcome, decide, equivalence_alpha, identical_passes
 from .effect import DETECTION_POWER
 from .errors import WelchInputError, check_alpha, check_int
 from .multitest import bonferroni
@@ -111,6 +111,7 @@ class SequentialPlan:
     reserve: float = EXTENSION_RESERVE  # the share of alpha kept for looks past max_passes (a grown budget)
     early_share: float = EARLY_SHARE  # the share of each `biased` level spent by the early design (0: none)
     futility: bool = True  # stop once neither claim is within the budget's reach (`decision`)
+    futility_loss: float = FUTILITY_LOSS  # ...and no tile-channel has this chance left to reach `biased`
     pixel_variance: str = "off"  # test tiles by their pixels' variances where allowed (`welch_core.pixels`)
 
     def __post_init__(self):
@@ -123,6 +124,8 @@ class SequentialPlan:
             raise WelchInputError(f"`reserve` must lie in [0, 1), got {self.reserve!r}")
         if not 0 <= self.early_share < 1:
             raise WelchInputError(f"`early_share` must lie in [0, 1), got {self.early_share!r}")
+        if not 0 < self.futility_loss < 1:
+            raise WelchInputError(f"`futility_loss` must lie in (0, 1), got {self.futility_loss!r}")
         if self.pixel_variance not in PIXEL_MODES:
             raise WelchInputError(f"`pixel_variance` must be one of {PIXEL_MODES}, got {self.pixel_variance!r}")
 
@@ -380,6 +383,7 @@ def sequential_look(
         promise=promise(scales, biased_levels(ahead, shares, plan), fractions[-1] / ahead[-1])
         if plan.futility and plan.tolerance is not None
         else None,
+        futility_loss=plan.futility_loss,
     )
     outcome = decide(scales, tests, runs, evidence, plan.alpha, plan.tolerance, _claim(plan, scales, claim_tile),
                      start.identical, whole, start.uncovered)  # fmt: skip

@@ -51,6 +51,7 @@ class CheckJob:
     tolerance: float | None = default("tolerance", "check")
     equivalence_tile: int | None = None  # claim `equivalent` at this tile size (default: sized for the budget)
     futility: bool = True  # stop once neither claim is within the budget's reach (welch_core.decision)
+    futility_loss: float = default("futility_loss", "check")  # ...giving up at most this power
     pixel_variance: str = default("pixel_variance", "check")  # the pixel-variance test (welch_core.pixels)
     resume: bool = False
     #: The reference is a finished statistics file (a suite's blessed reference), not rendered: only the test
@@ -73,6 +74,7 @@ class CheckJob:
             tolerance=self.tolerance,
             equivalence_tile=self.equivalence_tile,
             futility=self.futility,
+            futility_loss=self.futility_loss,
             pixel_variance=pixels,
             **early,
         )
@@ -143,6 +145,7 @@ class CheckRequest:
     tolerance: float | None = default("tolerance", "check")
     equivalence_tile: int | None = None
     futility: bool = True
+    futility_loss: float = default("futility_loss", "check")
     pixel_variance: str = default("pixel_variance", "check")
     unpaired: bool = False
     seed_offset: int = default("seed_offset", "check")

@@ -754,9 +754,24 @@ OPTIONS = {
             "flag",
             "render the whole budget even when neither claim is within its reach (by default the check stops "
             "`inconclusive` once its claim can't be bounded by the budget at the current estimates and no "
-            "tile-channel has a 5% chance left to reach `biased` by the budget, even with the bias the budget "
-            "detects there: the stop gives up at most 5% of the power against such a bias)",
+            "tile-channel has a --futility-loss chance (5%) left to reach `biased` by the budget, even with the bias "
+            "the budget detects there: the stop gives up at most that share of the power against such a bias)",
             default=True,  # the flag turns it off
+            uses={"check": _USE},
+        ),
+        Option(
+            "futility_loss",
+            "--futility-loss",
+            None,
+            "probability",
+            "the most power the futility stop may give up against the bias the budget detects: it stops only where "
+            "no tile-channel has this chance left to reach `biased` by the budget; more stops sooner, less finds "
+            "more",
+            default=0.05,
+            low=0.0,
+            high=1.0,
+            metavar="P",
+            number=True,
             uses={"check": _USE},
         ),
         Option(

@@ -294,3 +294,14 @@ def test_a_check_started_before_the_pixel_test_resumes_without_it(tmp_path):
     assert state["plan"]["pixel_variance"] == "off" and "pixel variances" not in done.stdout
     done = check(*common, "--max-passes", 21, "--resume", "--pixel-variance", "on", expect=2)
     assert "it was started with --pixel-variance off, not --pixel-variance on" in done.stderr
+
+
+def test_the_futility_stops_price_goes_from_the_command_line_into_the_design():
+    from batch.decide.check_job import check_job_from_args
+    from batch.decide.check_state import _plan_difference
+
+    parse = cli.build_parser().parse_args
+    common = ["check", "--scene", "corner", "--set", "cycles.film_exposure=1.01", "--out", "x"]
+    job, default = (check_job_from_args(parse(args)) for args in ([*common, "--futility-loss", "0.2"], common))
+    assert job.plan(16).futility_loss == 0.2 and default.plan(16).futility_loss == 0.05
+    assert _plan_difference(default.plan(16), job.plan(16)) == "--futility-loss 0.05, not --futility-loss 0.2"

@@ -40,6 +40,7 @@ def test_look_schedule():
         ),
         ({"max_passes": 8, "spending": "haybittle"}, "`spending` must be one of ('obrien_fleming', 'pocock')"),
         ({"max_passes": 8, "early_share": 1.0}, "`early_share` must lie in [0, 1), got 1.0"),
+        ({"max_passes": 8, "futility_loss": 0.0}, "`futility_loss` must lie in (0, 1), got 0.0"),
     ],
 )
 def test_bad_plans(kwargs, message):

@@ -170,6 +170,24 @@ def test_the_promise_is_the_conditional_power_under_the_bias_the_budget_detects(
     assert promise([scale], [level], 1.0) == 1.0
 
 
+def test_the_futility_stop_gives_up_the_power_its_plan_allows():
+    """The stop's price is the plan's: a look whose most promising tile-channel still has a 38 % chance to reach
+    `biased` by the budget goes on at the default 5 % and stops at 50 %, and the outcome says which price it paid."""
+    rng = np.random.default_rng(8)
+    mean = np.full((2, 2, 3), 100.0)
+    ref_sums, test_sums = rng.normal(mean, 4.0, (100, 2, 2, 3)), rng.normal(mean, 4.0, (100, 2, 2, 3))
+    ref = TileStats.from_sums(ref_sums[:48], range(48), 2 * TILE, 2 * TILE, TILE)
+    test = TileStats.from_sums(test_sums[:48], range(1000, 1048), 2 * TILE, 2 * TILE, TILE)
+    fractions = [information_fraction(n, 100) for n in look_schedule(100) if n <= 48]
+    looks = {}
+    for loss in (FUTILITY_LOSS, 0.5):
+        plan = SequentialPlan(max_passes=100, alpha=0.01, tolerance=0.001, futility_loss=loss)
+        looks[loss] = sequential_look(ref, test, plan, fractions).outcome
+    assert looks[0.5].promise == looks[FUTILITY_LOSS].promise == pytest.approx(0.38, abs=0.01)
+    assert looks[FUTILITY_LOSS].reason == "undecided" and looks[0.5].reason == "futile"
+    assert [looks[loss].to_json()["futility_loss"] for loss in looks] == [FUTILITY_LOSS, 0.5]
+
+
 @pytest.mark.slow
 def test_the_futility_stop_gives_up_at_most_its_share_of_power_against_the_bias_the_budget_detects():
     """200 sequences with one tile-channel biased by about its minimum detectable bias at the budget (80 % power at
