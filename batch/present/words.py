@@ -8,6 +8,8 @@ Nothing here decides: the verdict and each number come from the outcome; these f
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 from .._siblings import welch_core as wc
@@ -132,94 +134,12 @@ def _biased_claim(outcome: dict[str, Any], text: str, whole: str | None) -> list
 
 def sentence(outcome: dict[str, Any]) -> str:
     """The verdict in one sentence, its own word first: what it claims, at which scale, with its numbers; at a
-    look of a check that goes on, "so far" first (no verdict yet)."""
-    text, reason = outcome["verdict_text"] if outcome.get("decided", True) else "so far", outcome["reason"]
-    whole = whole_image(outcome)
-    n = min(outcome["n_ref"], outcome["n_test"])
-    if reason == Why.DETERMINISTIC:
-        return f"{text}: {deterministic(outcome['deterministic'], outcome['test'])}"
-    if reason == Why.IDENTICAL:
-        return f"{text}: all {n} passes are identical on both sides; {_identical_share(outcome)}"
-    if reason == Why.IDENTICAL_TOO_FEW:
-        return (
-            f"{text}: all {n} passes are identical on both sides so far; {outcome['identical_needed']} identical "
-            "passes would rule out a change that alters one pass in ten"
-        )
-    parts = []
-    if reason == Why.BOUNDED:
-        claim = claim_scale(outcome)
-        parts.append(f"{text} within ±{_tolerance(outcome)} in {every_tile(claim)} ({_ruled_out_there(claim)})")
-        target = scale_of(outcome, outcome.get("target_tile"))
-        if target is not None and target["tile"] != claim["tile"]:
-            parts.append(f"not in {every_tile(target)}, the size the budget was planned for")
-        finer = finer_needs(outcome, claim["tile"])
-        if finer:
-            parts.append(finer)
-    elif reason == Why.SIGNIFICANT:
-        parts += _biased_claim(outcome, text, whole)
-        whole = None
-    elif reason == Why.SPREAD:
-        parts.append(f"{text}: a difference spread over many tiles (too many small p-values)")
-    elif reason == Why.FUTILE:
-        claim = claim_scale(outcome)
-        need = claim["passes_needed"]
-        reach = (
-            f"about {need} passes a side at the current estimates" if need is not None
-            else "more passes than any budget at the current estimates (an estimate near or beyond the tolerance)"
-        )  # fmt: skip
-        parts.append(
-            f"{text}: stopped early after {n} of {outcome['budget']} passes a side, neither claim within the "
-            f"budget's reach: {every_tile(claim)} within ±{_tolerance(outcome)} would take {reach}, and no "
-            f"tile-channel would reach `biased` by the budget with more than a {_loss(outcome)} chance even if it held "
-            "the bias the budget detects there"
-        )
-        parts.append(f"bias ruled out per tile size: {ruled_out_list(outcome)}")
-    elif reason in (Why.UNBOUNDED, Why.BEYOND):
-        claim = claim_scale(outcome)
-        tile = claim["tile"]
-        coarser = next((s for s in outcome["scales"] if s["tile"] > tile and s["ruled_out"] is not None
-                        and s["ruled_out"] <= outcome["tolerance"]), None)  # fmt: skip
-        first = f"{text}: not shown within ±{_tolerance(outcome)} in {every_tile(claim)}"
-        if coarser is not None:
-            first = f"{text}: within ±{_tolerance(outcome)} in {every_tile(coarser)}; {tile}x{tile} not bounded"
-        if reason == Why.BEYOND:
-            first += " (a finer tile found biased differs by more than that)"
-        parts.append(first)
-        if n < outcome["identical_needed"]:
-            parts.append(f"equivalence needs {outcome['identical_needed']} passes a side, {n} so far")
-        elif claim["tiles"] - claim["bounded"]:
-            open_ = f"{claim['tiles'] - claim['bounded']} of {claim['tiles']} tiles not bounded"
-            if claim["unbounded_box"] is not None and claim["bounded"]:
-                open_ += f" ({box(claim['unbounded_box'])})"
-            parts.append(open_ + _passes_to_bound(claim))
-        parts.append(f"bias ruled out per tile size: {ruled_out_list(outcome)}")
-    elif reason == Why.UNDECIDED:
-        parts.append(f"{text}: undecided after {n} passes a side")
-    elif reason == Why.UNREACHABLE:
-        test = outcome["resampling"]
-        parts.append(
-            f"{text}: with {outcome['n_ref']} v {outcome['n_test']} passes no bias can be shown (the permutation test "
-            f"that sides of different pass counts need can't give a p-value below {fmt.p_value(test['smallest'])})"
-        )
-    elif reason == Why.UNTESTABLE:
-        parts.append(f"{text}: no tile can be tested (too few passes, constant images or non-finite values)")
-    elif reason == Why.TOO_UNTESTED:
-        region = box(outcome["untestable_box"])
-        parts.append(
-            f"{text}: the Welch samples of {outcome['untestable']} tiles ({region}) are clearly not normal at every "
-            "tile size (fireflies or caustics): too much of the image can't be tested"
-        )
-    else:  # nothing found
-        detectable = outcome["min_detectable"]
-        finest = outcome["scales"][0]["tile"]
-        found = (
-            f": a bias of {fmt.magnitude(detectable)} in a {finest}x{finest} tile would have been found with 80 % power"
-            if detectable is not None
-            else ""
-        )
-        parts.append(f"{text}{found}")
-    if whole:
-        parts.append(whole)
+    look of a check that goes on, "so far" first (no verdict yet). Each reason's words: `REASON_WORDS`."""
+    said = _Said.of(outcome)
+    words = REASON_WORDS[outcome["reason"]]
+    parts = words.claim(said)
+    if words.whole and said.whole:
+        parts.append(said.whole)
     return "; ".join(parts)
 
 
@@ -350,10 +270,9 @@ def next_step(outcome: dict[str, Any], check: dict[str, Any] | None = None, hidd
     """What to do with this verdict, in a sentence or two; `check`: a check's record (`check_record`), None for a
     compare; `hidden`: the settings in which the two sides differ but the passes do not: a setting the passes
     replace on both sides (`batch.present.summary.fixed_notes`), or one that acts only from more samples per render
-    than the passes have (`sample_hidden`)."""
-    reason = outcome["reason"]
-    timed = bool(check and check.get("max_seconds"))  # its budget can't grow on resume: a new check is the way on
-    if hidden and reason in (Why.BOUNDED, Why.IDENTICAL, Why.IDENTICAL_TOO_FEW):
+    than the passes have (`sample_hidden`). Each reason's words: `REASON_WORDS`."""
+    words = REASON_WORDS[outcome["reason"]]
+    if hidden and words.agree:
         names = ", ".join(dict.fromkeys(h.split(":")[0] for h in hidden))
         if any(_ACTING in h for h in hidden):
             return (
@@ -366,91 +285,287 @@ def next_step(outcome: dict[str, Any], check: dict[str, Any] | None = None, hidd
             "tested: compare samples, sampling patterns or devices directly (--test-spp, --test-sampling-pattern, "
             "--test-device); a denoiser, adaptive sampling or a time limit is outside what this test can judge."
         )
-    more = (
-        "run the check again with a larger --max-seconds (or --max-passes alone) and another --out: a time budget "
-        "does not grow on resume"
-        if timed
-        else "run the same check again with a larger --max-passes and --resume: the looks already made keep their "
-        "boundaries, and the looks past the budget spend the share of alpha kept for them"
-        if check
-        else "render more passes into both runs (the same render commands with --resume and more seeds), then "
-        "compare again, or let `python -m batch check` render until it decides"
-    )
-    if reason in (Why.SIGNIFICANT, Why.SPREAD, Why.DETERMINISTIC):
-        top = outcome["most_significant"]
-        located = f" The most significant difference is in {where(top, outcome)}." if top else ""
-        return (
-            "The two do not converge to the same image." + located + " Look at the recorded differences and the "
-            "tiles outlined in the map; a difference you expected (a setting changed on purpose) confirms the test "
-            "works."
-        )
-    if reason == Why.BOUNDED:
-        claim = claim_scale(outcome)
-        done = f"Nothing to do at this size: {every_tile(claim)} is within ±{_tolerance(outcome)} of the reference."
-        finer = [x for x in outcome["scales"] if x["tile"] < claim["tile"] and x["projected"] is not None]
-        if finer:
-            size = finer[-1]
-            done += (
-                f" To speak for {size['tile']}x{size['tile']} tiles too: the same check with --equivalence-tile "
-                f"{size['tile']} and --max-passes {size['projected']} (about that many passes a side), another --out."
-            )
-        return done
-    if reason == Why.IDENTICAL:
-        return "Nothing to do: the change leaves every pass as it was."
-    if reason == Why.IDENTICAL_TOO_FEW:
-        return (
-            f"Render at least {outcome['identical_needed']} passes a side to rule out a rarely visible change: {more}."
-        )
-    if reason in (Why.FUTILE, Why.UNBOUNDED, Why.BEYOND):
-        claim = claim_scale(outcome)
-        coarser = [x for x in outcome["scales"] if x["tile"] > claim["tile"] and x["projected"] is not None]
+    return words.step(_Said.of(outcome, check))
+
+
+# -- each reason's words ------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Said:
+    """What a reason's words are made of: the outcome, its verdict's word (or "so far" at a look that goes on),
+    the passes a side, the whole image's difference, and a check's record (None for a compare)."""
+
+    outcome: dict[str, Any]
+    text: str
+    n: int
+    whole: str | None
+    check: dict[str, Any] | None = None
+
+    @classmethod
+    def of(cls, outcome: dict[str, Any], check: dict[str, Any] | None = None) -> _Said:
+        text = outcome["verdict_text"] if outcome.get("decided", True) else "so far"
         n = min(outcome["n_ref"], outcome["n_test"])
-        if claim["projected"] is not None:
-            need = claim["projected"]
-            grow = (
-                f"{every_tile(claim)} within ±{_tolerance(outcome)} would need about {need} passes a side if the sides "
-                "agree: "
-                + (f"the check again with --max-passes {need} (no --max-seconds) and another --out" if timed
-                   else f"the same check with --max-passes {need} and --resume" if check
-                   else f"render about {need} passes a side into both runs (--resume, more seeds), then compare again")
-            )  # fmt: skip
-            if claim["passes_needed"] is None and n >= outcome["identical_needed"]:
-                grow += " (an estimate is at or beyond the tolerance now: look at the tiles not bounded in the map)"
-        else:
-            grow = (
-                f"more passes alone can't bound {every_tile(claim)} (tiles whose samples are not normal, or a "
-                "reference too noisy): more samples per pass (--spp) make each pass's tile sums more normal"
-            )
-        if coarser and not outcome.get("target_tile"):
-            size = coarser[0]
-            grow += (
-                f"; or claim a coarser size: --equivalence-tile {size['tile']} (about {size['projected']} passes a "
-                "side)"
-            )
-        if reason == Why.FUTILE:
+        return cls(outcome, text, n, whole_image(outcome), check)
+
+    @property
+    def timed(self) -> bool:
+        """A check with a time budget: it can't grow on resume, a new check is the way on."""
+        return bool(self.check and self.check.get("max_seconds"))
+
+    @property
+    def more(self) -> str:
+        """How to get more passes."""
+        if self.timed:
             return (
-                f"The check stopped early: {grow}. The stop gave up at most {_loss(outcome)} of the power to find a "
-                "bias the budget detects; --no-futility renders the whole budget."
+                "run the check again with a larger --max-seconds (or --max-passes alone) and another --out: a time "
+                "budget does not grow on resume"
             )
-        return f"Not decided at this size: {grow}."
-    if reason == Why.UNREACHABLE:
+        if self.check:
+            return (
+                "run the same check again with a larger --max-passes and --resume: the looks already made keep "
+                "their boundaries, and the looks past the budget spend the share of alpha kept for them"
+            )
         return (
-            "Too few passes on the smaller side for a test that holds with skewed tile sums: render more passes there "
-            "(the same render command with --resume and more seeds), then compare again."
+            "render more passes into both runs (the same render commands with --resume and more seeds), then "
+            "compare again, or let `python -m batch check` render until it decides"
         )
-    if reason == Why.UNTESTABLE:
-        return f"No tile could be tested (too few passes, or constant images): {more}."
-    if reason == Why.TOO_UNTESTED:
+
+
+@dataclass(frozen=True)
+class ReasonWords:
+    """A reason's words: its sentence's parts (`claim`), whether the whole image's difference follows them
+    (`whole`), its next step (`step`), and whether the passes agree (`agree`: a difference the passes do not
+    show, `next_step`'s `hidden`, is said first)."""
+
+    claim: Callable[[_Said], list[str]]
+    step: Callable[[_Said], str]
+    whole: bool = True
+    agree: bool = False
+
+
+def _deterministic_claim(said: _Said) -> list[str]:
+    return [f"{said.text}: {deterministic(said.outcome['deterministic'], said.outcome['test'])}"]
+
+
+def _identical_claim(said: _Said) -> list[str]:
+    return [f"{said.text}: all {said.n} passes are identical on both sides", _identical_share(said.outcome)]
+
+
+def _identical_too_few_claim(said: _Said) -> list[str]:
+    return [
+        f"{said.text}: all {said.n} passes are identical on both sides so far",
+        f"{said.outcome['identical_needed']} identical passes would rule out a change that alters one pass in ten",
+    ]
+
+
+def _bounded_claim(said: _Said) -> list[str]:
+    outcome = said.outcome
+    claim = claim_scale(outcome)
+    parts = [f"{said.text} within ±{_tolerance(outcome)} in {every_tile(claim)} ({_ruled_out_there(claim)})"]
+    target = scale_of(outcome, outcome.get("target_tile"))
+    if target is not None and target["tile"] != claim["tile"]:
+        parts.append(f"not in {every_tile(target)}, the size the budget was planned for")
+    finer = finer_needs(outcome, claim["tile"])
+    return parts + ([finer] if finer else [])
+
+
+def _significant_claim(said: _Said) -> list[str]:
+    return _biased_claim(said.outcome, said.text, said.whole)
+
+
+def _spread_claim(said: _Said) -> list[str]:
+    return [f"{said.text}: a difference spread over many tiles (too many small p-values)"]
+
+
+def _futile_claim(said: _Said) -> list[str]:
+    outcome = said.outcome
+    claim = claim_scale(outcome)
+    need = claim["passes_needed"]
+    reach = (
+        f"about {need} passes a side at the current estimates" if need is not None
+        else "more passes than any budget at the current estimates (an estimate near or beyond the tolerance)"
+    )  # fmt: skip
+    return [
+        f"{said.text}: stopped early after {said.n} of {outcome['budget']} passes a side, neither claim within the "
+        f"budget's reach: {every_tile(claim)} within ±{_tolerance(outcome)} would take {reach}, and no "
+        f"tile-channel would reach `biased` by the budget with more than a {_loss(outcome)} chance even if it held "
+        "the bias the budget detects there",
+        f"bias ruled out per tile size: {ruled_out_list(outcome)}",
+    ]
+
+
+def _unbounded_claim(said: _Said) -> list[str]:
+    outcome, text, n = said.outcome, said.text, said.n
+    claim = claim_scale(outcome)
+    tile = claim["tile"]
+    coarser = next((s for s in outcome["scales"] if s["tile"] > tile and s["ruled_out"] is not None
+                    and s["ruled_out"] <= outcome["tolerance"]), None)  # fmt: skip
+    first = f"{text}: not shown within ±{_tolerance(outcome)} in {every_tile(claim)}"
+    if coarser is not None:
+        first = f"{text}: within ±{_tolerance(outcome)} in {every_tile(coarser)}; {tile}x{tile} not bounded"
+    if outcome["reason"] == Why.BEYOND:
+        first += " (a finer tile found biased differs by more than that)"
+    parts = [first]
+    if n < outcome["identical_needed"]:
+        parts.append(f"equivalence needs {outcome['identical_needed']} passes a side, {n} so far")
+    elif claim["tiles"] - claim["bounded"]:
+        open_ = f"{claim['tiles'] - claim['bounded']} of {claim['tiles']} tiles not bounded"
+        if claim["unbounded_box"] is not None and claim["bounded"]:
+            open_ += f" ({box(claim['unbounded_box'])})"
+        parts.append(open_ + _passes_to_bound(claim))
+    return parts + [f"bias ruled out per tile size: {ruled_out_list(outcome)}"]
+
+
+def _undecided_claim(said: _Said) -> list[str]:
+    return [f"{said.text}: undecided after {said.n} passes a side"]
+
+
+def _unreachable_claim(said: _Said) -> list[str]:
+    outcome = said.outcome
+    return [
+        f"{said.text}: with {outcome['n_ref']} v {outcome['n_test']} passes no bias can be shown (the permutation "
+        "test that sides of different pass counts need can't give a p-value below "
+        f"{fmt.p_value(outcome['resampling']['smallest'])})"
+    ]
+
+
+def _untestable_claim(said: _Said) -> list[str]:
+    return [f"{said.text}: no tile can be tested (too few passes, constant images or non-finite values)"]
+
+
+def _too_untested_claim(said: _Said) -> list[str]:
+    outcome = said.outcome
+    return [
+        f"{said.text}: the Welch samples of {outcome['untestable']} tiles ({box(outcome['untestable_box'])}) are "
+        "clearly not normal at every tile size (fireflies or caustics): too much of the image can't be tested"
+    ]
+
+
+def _nothing_found_claim(said: _Said) -> list[str]:
+    detectable = said.outcome["min_detectable"]
+    finest = said.outcome["scales"][0]["tile"]
+    found = (
+        f": a bias of {fmt.magnitude(detectable)} in a {finest}x{finest} tile would have been found with 80 % power"
+        if detectable is not None
+        else ""
+    )
+    return [f"{said.text}{found}"]
+
+
+def _differ_step(said: _Said) -> str:
+    top = said.outcome["most_significant"]
+    located = f" The most significant difference is in {where(top, said.outcome)}." if top else ""
+    return (
+        "The two do not converge to the same image." + located + " Look at the recorded differences and the "
+        "tiles outlined in the map; a difference you expected (a setting changed on purpose) confirms the test "
+        "works."
+    )
+
+
+def _bounded_step(said: _Said) -> str:
+    outcome = said.outcome
+    claim = claim_scale(outcome)
+    done = f"Nothing to do at this size: {every_tile(claim)} is within ±{_tolerance(outcome)} of the reference."
+    finer = [x for x in outcome["scales"] if x["tile"] < claim["tile"] and x["projected"] is not None]
+    if finer:
+        size = finer[-1]
+        done += (
+            f" To speak for {size['tile']}x{size['tile']} tiles too: the same check with --equivalence-tile "
+            f"{size['tile']} and --max-passes {size['projected']} (about that many passes a side), another --out."
+        )
+    return done
+
+
+def _identical_step(said: _Said) -> str:
+    return "Nothing to do: the change leaves every pass as it was."
+
+
+def _identical_too_few_step(said: _Said) -> str:
+    needed = said.outcome["identical_needed"]
+    return f"Render at least {needed} passes a side to rule out a rarely visible change: {said.more}."
+
+
+def _unbounded_step(said: _Said) -> str:
+    """Not bounded at the claim's size (at the budget, or stopped early for futility): the passes that would."""
+    outcome, check, timed = said.outcome, said.check, said.timed
+    claim = claim_scale(outcome)
+    coarser = [x for x in outcome["scales"] if x["tile"] > claim["tile"] and x["projected"] is not None]
+    if claim["projected"] is not None:
+        need = claim["projected"]
+        grow = (
+            f"{every_tile(claim)} within ±{_tolerance(outcome)} would need about {need} passes a side if the sides "
+            "agree: "
+            + (f"the check again with --max-passes {need} (no --max-seconds) and another --out" if timed
+               else f"the same check with --max-passes {need} and --resume" if check
+               else f"render about {need} passes a side into both runs (--resume, more seeds), then compare again")
+        )  # fmt: skip
+        if claim["passes_needed"] is None and said.n >= outcome["identical_needed"]:
+            grow += " (an estimate is at or beyond the tolerance now: look at the tiles not bounded in the map)"
+    else:
+        grow = (
+            f"more passes alone can't bound {every_tile(claim)} (tiles whose samples are not normal, or a "
+            "reference too noisy): more samples per pass (--spp) make each pass's tile sums more normal"
+        )
+    if coarser and not outcome.get("target_tile"):
+        size = coarser[0]
+        grow += (
+            f"; or claim a coarser size: --equivalence-tile {size['tile']} (about {size['projected']} passes a side)"
+        )
+    if outcome["reason"] == Why.FUTILE:
         return (
-            f"The Welch samples of {box(outcome['untestable_box'])} are clearly not normal (fireflies or caustics) at "
-            "every tile size, so that part can't be tested yet: more samples per pass (--spp) make each pass's tile "
-            f"sums more normal; or {more}."
+            f"The check stopped early: {grow}. The stop gave up at most {_loss(outcome)} of the power to find a "
+            "bias the budget detects; --no-futility renders the whole budget."
         )
-    if reason == Why.UNDECIDED:
-        return f"Not decided yet: {more}."
-    detectable = outcome["min_detectable"]
+    return f"Not decided at this size: {grow}."
+
+
+def _unreachable_step(said: _Said) -> str:
+    return (
+        "Too few passes on the smaller side for a test that holds with skewed tile sums: render more passes there "
+        "(the same render command with --resume and more seeds), then compare again."
+    )
+
+
+def _untestable_step(said: _Said) -> str:
+    return f"No tile could be tested (too few passes, or constant images): {said.more}."
+
+
+def _too_untested_step(said: _Said) -> str:
+    return (
+        f"The Welch samples of {box(said.outcome['untestable_box'])} are clearly not normal (fireflies or caustics) "
+        "at every tile size, so that part can't be tested yet: more samples per pass (--spp) make each pass's tile "
+        f"sums more normal; or {said.more}."
+    )
+
+
+def _undecided_step(said: _Said) -> str:
+    return f"Not decided yet: {said.more}."
+
+
+def _nothing_found_step(said: _Said) -> str:
+    detectable = said.outcome["min_detectable"]
     smaller = f"a bias below {fmt.magnitude(detectable)} per tile" if detectable is not None else "a small bias"
     return (
-        f"No bias was found, but {smaller} could still hide: to rule it out, {more}; with --tolerance the verdict "
-        "says whether the two are equivalent within it."
+        f"No bias was found, but {smaller} could still hide: to rule it out, {said.more}; with --tolerance the "
+        "verdict says whether the two are equivalent within it."
     )
+
+
+#: Every reason of a verdict (`welch_core.VerdictReason`, one per branch of `decide`) and its words.
+REASON_WORDS: dict[Why, ReasonWords] = {
+    Why.DETERMINISTIC: ReasonWords(_deterministic_claim, _differ_step, whole=False),
+    Why.SIGNIFICANT: ReasonWords(_significant_claim, _differ_step, whole=False),  # the claim places the whole
+    Why.SPREAD: ReasonWords(_spread_claim, _differ_step),
+    Why.IDENTICAL: ReasonWords(_identical_claim, _identical_step, whole=False, agree=True),
+    Why.BOUNDED: ReasonWords(_bounded_claim, _bounded_step, agree=True),
+    Why.IDENTICAL_TOO_FEW: ReasonWords(_identical_too_few_claim, _identical_too_few_step, whole=False, agree=True),
+    Why.FUTILE: ReasonWords(_futile_claim, _unbounded_step),
+    Why.UNDECIDED: ReasonWords(_undecided_claim, _undecided_step),
+    Why.UNTESTABLE: ReasonWords(_untestable_claim, _untestable_step),
+    Why.UNREACHABLE: ReasonWords(_unreachable_claim, _unreachable_step),
+    Why.TOO_UNTESTED: ReasonWords(_too_untested_claim, _too_untested_step),
+    Why.BEYOND: ReasonWords(_unbounded_claim, _unbounded_step),
+    Why.UNBOUNDED: ReasonWords(_unbounded_claim, _unbounded_step),
+    Why.NOTHING_FOUND: ReasonWords(_nothing_found_claim, _nothing_found_step),
+}
