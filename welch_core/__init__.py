@@ -154,7 +154,7 @@ if TYPE_CHECKING:  # each name where it is defined, for editors and type checker
     )
     from .verdict import Verdict, VerdictReason
 
-_SUBMODULES = frozenset(_EXPORTS.values()) | {"paired_test", "png", "sequential", "welch_test"}
+_SUBMODULES = frozenset(_EXPORTS.values()) | {"paired_test", "parallel", "png", "sequential", "welch_test"}
 
 __all__ = sorted(_EXPORTS)
 

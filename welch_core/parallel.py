@@ -1,4 +1,5 @@
-"""A pass's per-pixel work on every core: its rows split into one chunk a core, each worked on by a thread.
+"""A pass's per-pixel work on every core: its rows split into one chunk a core, each worked on by a thread (and a
+few independent tasks, a report's pictures, each on a thread of its own).
 
 numpy's elementwise operations and reductions release the GIL, so threads of one process run them at once: no
 copy of the pass to another process, and inside Blender as well. Each element's arithmetic is the same whichever
@@ -49,6 +50,17 @@ def by_rows(work: Callable[[slice], None], rows: int, step: int, elements: int) 
         future.exception()  # every chunk ends before anything is raised: none still writes into the arrays
     for future in futures:
         future.result()
+
+
+def at_once(*tasks: Callable[[], object]) -> list:
+    """Each of `tasks` called on a thread of its own (a report's pictures: numpy and zlib release the GIL), their
+    results in order; raises the first task's error after every task has ended. Threads of their own, not the
+    pool's: a task may use `by_rows`, whose chunks would wait behind the tasks in a pool of as many threads."""
+    if len(tasks) < 2 or cores() < 2:
+        return [task() for task in tasks]
+    with ThreadPoolExecutor(len(tasks), thread_name_prefix="welch-tasks") as executor:
+        futures = [executor.submit(task) for task in tasks]
+    return [future.result() for future in futures]
 
 
 def _executor() -> ThreadPoolExecutor:

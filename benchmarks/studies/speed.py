@@ -10,7 +10,8 @@ compare  ``python -m batch compare`` as a whole process (statistics files of 32 
          their pixel sums) against ``python -c "import numpy, scipy.special"``, at 1024x576 and 3840x2160, and
          at 1024x576 with 256 v 4 passes (the permutation test's cost, unbiased and biased), and at 1024x576 with
          the pixel moments that rendered runs keep, with the pixel-variance test (``--pixel-variance on``) and
-         without it (``off``: no moments read);
+         without it (``off``: no moments read); the project's modules compiled once before the timed runs, as an
+         installed tool has them;
          and the statistics alone (`compare` at the stored tile size) against scipy's ``ttest_ind_from_stats``.
          Goals: <= 2.5x and <= 1.2x.
 passes   A pass through the pipeline (`PassRenderer` + `render_passes`: render, save and read the EXR, tile sums,
@@ -80,10 +81,17 @@ def passes_run(height: int, width: int, first_seed: int, rng: np.random.Generato
     return run
 
 
-def interleaved(commands: dict[str, list[str]], repeats: int) -> dict[str, float]:
-    """Median wall time of each command, run in turn `repeats` times."""
+def interleaved(commands: dict[str, list[str]], repeats: int, bytecode: str | None = None) -> dict[str, float]:
+    """Median wall time of each command, run in turn `repeats` times. `bytecode`: a folder for the project's
+    compiled modules, made by a first run of each command that is not timed, as an installed tool has them (the
+    baseline's numpy and scipy have theirs from their installation, even where PYTHONDONTWRITEBYTECODE is set)."""
     times: dict[str, list[float]] = {name: [] for name in commands}
     env = dict(os.environ, PYTHONPATH=str(REPO))
+    if bytecode is not None:
+        env.pop("PYTHONDONTWRITEBYTECODE", None)
+        env["PYTHONPYCACHEPREFIX"] = bytecode
+        for command in commands.values():
+            subprocess.run(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env, cwd=REPO)
     for _ in range(repeats):
         for name, command in commands.items():
             start = time.perf_counter()
@@ -114,9 +122,11 @@ def bench_compare(repeats: int = 7) -> None:
         for label, mode in MOMENTS.items():
             commands[label] = [PYTHON, "-m", "batch", "compare", f"{tmp}/moments_a.npz", f"{tmp}/moments_b.npz",
                                "--pixel-variance", mode, "--out", f"{tmp}/report_moments_{mode}"]  # fmt: skip
-        medians = interleaved(commands, repeats)
+        medians = interleaved(commands, repeats, bytecode=f"{tmp}/bytecode")
     for label in [*SIZES, *UNEQUAL, *MOMENTS]:
         line(f"batch compare at {label}", medians[label], medians["baseline"], 2.5)
+    if os.environ.get("PYTHONDONTWRITEBYTECODE"):
+        print("  (PYTHONDONTWRITEBYTECODE is set here: the tool's modules were compiled once, before the timed runs)")
 
     from scipy import stats
 
