@@ -57,7 +57,9 @@ class Parser(argparse.ArgumentParser):
 PROG = "welch-bias"
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The command line's parser; `command`: only that command's (what `main` parses a command's line with: its
+    start-up does not build the others'), None or a name that is no command: every command's."""
     parser = Parser(
         prog=PROG if os.path.basename(sys.argv[0]) == PROG else "python -m batch",
         description="Detect bias in Monte Carlo renderers with Welch's t-test: render passes with different seeds, "
@@ -66,16 +68,9 @@ def build_parser() -> argparse.ArgumentParser:
         "4 internal error, 130 interrupted.",
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-
-    _add_render(sub)
-    _add_check(sub)
-    _add_ingest(sub)
-    _add_compare(sub)
-    _add_merge(sub)
-    _add_suite(sub)
-    _add_matrix(sub)
-    _add_audit(sub)
-    _add_bpy(sub)
+    adders = _PARSERS.get(command) or dict.fromkeys(_PARSERS.values())
+    for add in (adders,) if callable(adders) else adders:
+        add(sub)
     return parser
 
 
@@ -384,13 +379,33 @@ def argv_after_dashdash(argv: list[str]) -> list[str]:
     return argv[argv.index("--") + 1 :] if "--" in argv else []
 
 
+#: Each command's name and the function that adds its parser (some add two: compare and selftest, merge and lint,
+#: matrix and bisect, bpy and demo), in the order of `--help`.
+_PARSERS = {
+    "render": _add_render,
+    "check": _add_check,
+    "ingest": _add_ingest,
+    "compare": _add_compare,
+    "selftest": _add_compare,
+    "merge": _add_merge,
+    "lint": _add_merge,
+    "suite": _add_suite,
+    "matrix": _add_matrix,
+    "bisect": _add_matrix,
+    "audit": _add_audit,
+    "bpy": _add_bpy,
+    "demo": _add_bpy,
+}
+
+
 def main(argv: list[str] | None = None) -> int:
     # Paths with undecodable bytes and terminals that can't show every character must not cost a traceback.
     for stream in (sys.stdout, sys.stderr):
         if hasattr(stream, "reconfigure"):
             stream.reconfigure(errors="backslashreplace")
-    Parser.json_progress = "--json-progress" in (sys.argv[1:] if argv is None else argv)
-    args = build_parser().parse_args(argv)
+    given = sys.argv[1:] if argv is None else argv
+    Parser.json_progress = "--json-progress" in given
+    args = build_parser(given[0] if given else None).parse_args(argv)
     interrupts = Interrupts()
     try:
         with interrupts:

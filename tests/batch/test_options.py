@@ -208,3 +208,12 @@ def test_an_option_declared_for_a_command_is_on_its_parser_without_naming_it_the
     dests = [a.dest for a in parser._actions if a.dest != "help"]
     assert dests[:2] == ["alpha", "spp"] and sorted(dests) == sorted(declared)
     assert dests[2:] == [d for d in declared if d not in ("alpha", "spp")]
+
+
+@pytest.mark.parametrize("command", sorted(ARGV))
+def test_a_command_parses_the_same_with_its_parser_alone(command):
+    """`main` builds only the parser of the command it runs (a command's start-up); it reads the same."""
+    argv = ARGV[command]
+    alone = build_parser(argv[0])
+    assert vars(alone.parse_args(argv)) == vars(parse(*argv))
+    assert set(parsers()) >= {command} and alone.format_usage() == build_parser().format_usage()
