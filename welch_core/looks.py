@@ -23,8 +23,8 @@ keeps the boundaries nearly flat and found it at 5 (1.25x), at the price of a fi
 than the fixed test's (`docs/benchmarks`). O'Brien-Fleming's shape is also not calibrated in this design with
 skewed tile sums: 500 unbiased sequences as `tests/core/test_looks.py` draws them (skewness 1, standard deviations
 1:3, 64 passes, alpha 0.05) were called `biased` in 37 (7.4 %; 34 without the early design, 29 with a Pocock early
-design) against Pocock's 18 (3.6 %): it spends nearly all of alpha at the last looks, where the t tails of skewed
-samples are heavier than t's. `spending` stays for what-if studies; `check` offers no other.
+design) against Pocock's 18 (3.6 %), spending nearly all of alpha at the last looks (why it fails there was not
+measured). `spending` stays for what-if studies; `check` offers no other.
 The looks come at 2 passes a side and then every 15 % more passes.
 
 Why an early design beside it: a t with few degrees of freedom pays for a small level in passes. At n = 2 a side
