@@ -236,13 +236,11 @@ def _add_suite(sub) -> None:
     ):
         a = suite_sub.add_parser(action, help=text, description=text)
         a.add_argument("suite_file", metavar="SUITE", help="a suite file (.toml), or `builtin`")
-        a.add_argument("--refs", metavar="DIR", help="the references' folder (default for `builtin`: shipped ones)")
-        add_options(a, f"suite {action}", ("blender", "python", "device"))
+        add_options(a, f"suite {action}", ("refs", "blender", "python", "device"))
         a.add_argument("--filter", nargs="+", metavar="PATTERN", help="only the cases whose names match")
         add_options(a, f"suite {action}", ("json_progress",))
         if action == "bless":
-            a.add_argument("--force", action="store_true", help="replace a reference even where the new one differs")
-            a.add_argument("--missing", action="store_true", help="render only the cases that have no reference")
+            add_options(a, "suite bless", ("force", "missing"))
         else:
             add_options(a, "suite run", ("out",))
             add_options(a, "suite run", ("overrides",))
@@ -275,8 +273,7 @@ def _add_matrix(sub) -> None:
         add_options(m, name, ("blend_scene", "resolution", "device", "sampling_pattern", "overrides", "spp", "tile",
                               "passes", "alpha", "tolerance"))  # fmt: skip
         if name == "matrix":
-            m.add_argument("--baseline", metavar="BUILD", help="the build every other is compared with (default: "
-                           "the first)")  # fmt: skip
+            add_options(m, "matrix", ("baseline",))
         else:
             add_options(m, "bisect", ("overrides", "sampling_pattern"), side="test")
         add_options(m, name, ("out",))
@@ -315,21 +312,18 @@ def _add_audit(sub) -> None:
                    "itself is always audited)")  # fmt: skip
     build = a.add_mutually_exclusive_group()
     add_options(build, "audit", ("blender", "python"))
-    build.add_argument("--release", metavar="VERSION", help="audit this bpy release, e.g. 5.2.3 (its environment "
-                       "made once and cached, as `bpy VERSION` does)")  # fmt: skip
+    add_options(build, "audit", ("release",))
     a.add_argument("--releases", nargs="+", metavar="BUILD", help="bisect each confirmed difference over these "
                    "builds, oldest first (as bisect --builds: current, a release such as 4.5.4, or a path); the "
                    "audited release is the last")  # fmt: skip
-    a.add_argument("--bisect-passes", type=jobs.positive_int, default=32, metavar="N",
-                   help="passes per release and side of a bisect (default 32)")  # fmt: skip
+    add_options(a, "audit", ("bisect_passes",))
     add_options(
         a,
         "audit",
         ("resolution", "tile", "max_passes", "max_seconds", "min_passes", "alpha", "tolerance", "seed_offset"),
     )
     add_cluster_arguments(a)
-    a.add_argument("--plan", action="store_true", help="say what the release supports, the cells, the level and "
-                   "the time expected, and render nothing")  # fmt: skip
+    add_options(a, "audit", ("plan",))
     add_options(a, "audit", ("resume", "out"))
 
 
@@ -346,9 +340,7 @@ def _add_bpy(sub) -> None:
         epilog='Example: python -m batch check --scene corner --python "$(python -m batch bpy 4.5.4)" --out c/',
     )
     r.add_argument("version", nargs="?", metavar="VERSION", help="the release, e.g. 4.5.4")
-    r.add_argument("--list", action="store_true", help="list the cached releases, their Pythons and sizes")
-    r.add_argument("--base-python", metavar="PATH", help="the Python to make the environment with (default: the "
-                   "one the release needs, found on PATH or among pyenv's)")  # fmt: skip
+    add_options(r, "bpy", ("list", "base_python"))
 
     d = sub.add_parser("demo", help="the built-in corner scene against a biased variant (walls 0.21 instead of 0.2)")
     d.add_argument("--out", default=os.path.join("out", "demo"), metavar="REPORT_DIR")
