@@ -105,7 +105,7 @@ def _add_check(sub) -> None:
     k.add_argument("blend", nargs="?", metavar="SCENE.blend", help="scene file of the reference side")
     add_options(k, "check", ("scene",))
     add_options(k, "check", ("blend_scene", "overrides"))
-    k.add_argument("--test-blend", metavar="OTHER.blend", help="the test side's scene file (default: SCENE.blend)")
+    add_options(k, "check", ("test_blend",))
     add_options(k, "check", ("blend_scene",), side="test")
     add_options(k, "check", ("blender", "python"))
     add_options(k, "check", ("blender", "python"), side="test")
@@ -178,12 +178,7 @@ def _add_compare(sub) -> None:
         add_options(c, name, ("tolerance", "equivalence_tile", "tile"))
         if name == "compare":  # a selftest's halves are subsets, which keep no pixel moments
             add_options(c, name, ("pixel_variance",))
-        c.add_argument(
-            "--full-maps",
-            action="store_true",
-            help="also write the p-value map and its overlay on the mean render as PNG at the image's resolution "
-            "(pvalue_map.png, overlay.png)",
-        )
+        add_options(c, name, ("full_maps",))
         if name == "compare":
             kind = c.add_mutually_exclusive_group()
             kind.add_argument(
@@ -306,8 +301,7 @@ def _add_audit(sub) -> None:
     a.add_argument("--scene", dest="scenes", action="append", default=[], metavar="NAME",
                    help="a built-in scene to audit, repeatable; `all` for every one (default: every one where no "
                    "scene file is given)")  # fmt: skip
-    a.add_argument("--changes", dest="changes_file", metavar="FILE", help="a file of your own [[change]] tables "
-                   "(the form of batch/decide/audits/cycles.toml), audited beside the shipped ones")  # fmt: skip
+    add_options(a, "audit", ("changes_file",))
     a.add_argument("--only", nargs="+", metavar="CHANGE", help="only these changes, by name (the default against "
                    "itself is always audited)")  # fmt: skip
     build = a.add_mutually_exclusive_group()

@@ -879,6 +879,35 @@ OPTIONS = {
         ),
         # -- what one command alone takes
         Option(
+            "test_blend",
+            "--test-blend",
+            None,
+            "text",
+            "the test side's scene file (default: SCENE.blend)",
+            metavar="OTHER.blend",
+            uses={"check": _USE},
+        ),
+        Option(
+            "full_maps",
+            "--full-maps",
+            None,
+            "flag",
+            "also write the p-value map and its overlay on the mean render as PNG at the image's resolution "
+            "(pvalue_map.png, overlay.png)",
+            default=False,
+            uses=dict.fromkeys(("compare", "selftest"), _USE),
+        ),
+        Option(
+            "changes_file",
+            "--changes",
+            None,
+            "text",
+            "a file of your own [[change]] tables (the form of batch/decide/audits/cycles.toml), audited beside the "
+            "shipped ones",
+            metavar="FILE",
+            uses={"audit": _USE},
+        ),
+        Option(
             "refs",
             "--refs",
             None,
