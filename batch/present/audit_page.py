@@ -12,20 +12,22 @@ import html
 
 from .._siblings import welch_core as wc
 from ..errors import Exit
+from ..jobs.protocol import CaseStatus
 from . import fmt
-from .dashboard import _STATUS_COLOURS, _STYLE
+from .colours import STATUS_COLOURS
+from .dashboard import STYLE
 
 #: Each status's colour and word, for a cell of a change documented to change only the noise, and of a control.
 _CELL = {
     "biased": ("#b00020", "biased"),
     "unconfirmed": ("#a06000", "not confirmed"),
-    "equivalent": (_STATUS_COLOURS["passed"], "no difference"),
+    "equivalent": (STATUS_COLOURS[CaseStatus.PASSED], "no difference"),
     "undecided": ("#a06000", "not decided"),
-    "not_applicable": (_STATUS_COLOURS["skipped"], "not applicable"),
-    "error": (_STATUS_COLOURS["error"], "error"),
+    "not_applicable": (STATUS_COLOURS[CaseStatus.SKIPPED], "not applicable"),
+    "error": (STATUS_COLOURS[CaseStatus.ERROR], "error"),
 }
 _CONTROL = {
-    "biased": (_STATUS_COLOURS["passed"], "found"),
+    "biased": (STATUS_COLOURS[CaseStatus.PASSED], "found"),
     "unconfirmed": ("#a06000", "not confirmed"),
     "equivalent": ("#777", "not exercised"),
     "undecided": ("#777", "not found"),
@@ -77,7 +79,7 @@ def write_audit_page(path, plan, summary: dict, results) -> None:
     seconds = f" · {fmt.duration(summary['seconds'])} in all" if summary.get("seconds") else ""
     page = f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>{html.escape(title)}</title>
-<meta name="viewport" content="width=device-width, initial-scale=1"><style>{_STYLE}{_EXTRA_STYLE}</style></head>
+<meta name="viewport" content="width=device-width, initial-scale=1"><style>{STYLE}{_EXTRA_STYLE}</style></head>
 <body><header><h1 id="title">{html.escape(title)}</h1>
 <div class="counts" id="counts">{counts}</div>
 <div class="muted" id="release">{html.escape(release["label"])} · build {html.escape(str(release["build"]))} ·

@@ -15,22 +15,15 @@ import numpy as np
 from .._siblings import welch_core as wc
 from ..errors import Exit
 from . import fmt
+from .colours import STATUS_COLOURS
 
 THUMBNAIL = 96  # pixels, the longer side
 
 #: The order of the rows: what needs a look first (a stable sort: the suite's order within each).
 FIRST = ("failed", "error", "inconclusive", "underpowered", "passed", "skipped")
 
-_STATUS_COLOURS = {
-    "passed": "#1b7f3b",
-    "failed": "#b00020",
-    "inconclusive": "#a06000",
-    "underpowered": "#a06000",
-    "error": "#b00020",
-    "skipped": "#777",
-}
-
-_STYLE = """
+#: The pages' one style sheet (the dashboard, the matrix's and the audit's pages).
+STYLE = """
 body{font:14px/1.45 system-ui,sans-serif;margin:0;color:#1d1d1f;background:#f6f6f4}
 header{padding:16px 24px;background:#fff;border-bottom:1px solid #ddd}
 h1{margin:0;font-size:24px}
@@ -54,7 +47,7 @@ def write_dashboard(path: Path, summary: dict, outcomes, references: list[Path])
     rows = sorted(zip(outcomes, summary["cases"], references, strict=True), key=lambda row: FIRST.index(row[0].status))
     rows = "".join(_row(o, record, ref) for o, record, ref in rows)
     counts = "".join(
-        f'<span style="color:{_STATUS_COLOURS[k]}">{v} {k}</span>' for k, v in summary["counts"].items() if v
+        f'<span style="color:{STATUS_COLOURS[k]}">{v} {k}</span>' for k, v in summary["counts"].items() if v
     )
     nothing_ran = all(o.status == "skipped" for o in outcomes)
     verdict = {Exit.OK: "every case passed", Exit.BIASED: "a case failed", Exit.USAGE: "nothing ran: every case was "
@@ -63,7 +56,7 @@ def write_dashboard(path: Path, summary: dict, outcomes, references: list[Path])
     page = f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>Suite {html.escape(summary["suite"])}: \
 {verdict[summary["exit_code"]]}</title>
-<meta name="viewport" content="width=device-width, initial-scale=1"><style>{_STYLE}</style></head>
+<meta name="viewport" content="width=device-width, initial-scale=1"><style>{STYLE}</style></head>
 <body><header><h1 id="title">Suite {html.escape(summary["suite"])}: {verdict[summary["exit_code"]]}</h1>
 <div class="counts" id="counts">{counts}</div>
 <div class="muted">alpha {summary["alpha"]:g} per case · references {html.escape(_near(summary["refs"], path))} ·
@@ -88,7 +81,7 @@ def _near(target: str, page: Path) -> str:
 
 
 def _row(outcome, record: dict, reference: Path) -> str:
-    colour = _STATUS_COLOURS[outcome.status]
+    colour = STATUS_COLOURS[outcome.status]
     ref, test, difference_url, scale, pmap = _thumbnails(outcome, reference)
     cells = "".join(_ab(shown, other, name) for shown, other, name in ((ref, test, "reference"), (test, ref, "test")))
     if difference_url:

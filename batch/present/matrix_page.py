@@ -9,13 +9,13 @@ import os
 from pathlib import Path
 
 from .._siblings import welch_core as wc
-from ..jobs.protocol import verdict_status
 from . import fmt
-from .dashboard import _STATUS_COLOURS, _STYLE, pvalue_thumbnail
+from .colours import verdict_colour
+from .dashboard import STYLE, pvalue_thumbnail
 
 
 def _cell(pair, page: Path) -> str:
-    colour = _STATUS_COLOURS[verdict_status(pair.verdict)]
+    colour = verdict_colour(pair.verdict)
     whole = pair.whole_image
     difference = html.escape(fmt.difference(whole)) if whole and whole.get("estimate") is not None else "—"
     bound = "—" if pair.ruled_out is None else f"±{fmt.bound(pair.ruled_out)}"
@@ -54,7 +54,7 @@ def write_bisect_page(path: Path, title: str, bisection) -> None:
 def _write(path: Path, title: str, body: str, note: str) -> None:
     page = f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>{html.escape(title)}</title>
-<meta name="viewport" content="width=device-width, initial-scale=1"><style>{_STYLE}
+<meta name="viewport" content="width=device-width, initial-scale=1"><style>{STYLE}
 td.pair{{min-width:160px}}</style></head>
 <body><header><h1 id="title">{html.escape(title)}</h1><div class="muted">{html.escape(note)}</div></header>
 <main>{body}

@@ -22,6 +22,7 @@ import numpy as np
 
 from .._siblings import welch_core as wc
 from . import fmt
+from .colours import verdict_colour
 from .summary import design_line, untested_lines
 
 #: The longest side of the pictures in the page (what statistics files store as their preview); tiles are drawn
@@ -96,7 +97,7 @@ def render_html(
         **_pictures(result, ref, test, previews),
     }
     text = script_json(data)
-    colour = {"biased": "#b00020", "inconclusive": "#a06000"}.get(report["verdict"], "#1b7f3b")
+    colour = verdict_colour(report["verdict"])
     replacements = {
         "{{TITLE}}": html.escape(f"Bias test: {report['verdict_text']}"),
         "{{VERDICT}}": html.escape(report["verdict_text"].capitalize()),

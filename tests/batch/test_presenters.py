@@ -203,3 +203,15 @@ def test_every_tile_test_has_its_words():
     for kind in wc.TileTestKind:
         assert words.deterministic(3, kind).startswith("3 tile-channels "), kind
         assert words.deterministic(3, kind.value) == words.deterministic(3, kind)  # report files hold the value
+
+
+def test_every_status_has_one_colour_on_every_page():
+    """A status's colour is written once (`colours.STATUS_COLOURS`); a verdict takes its status's, as report.html's
+    did before the table (biased red, inconclusive amber, the others green)."""
+    from batch.jobs.protocol import CaseStatus
+    from batch.present import colours
+
+    assert set(colours.STATUS_COLOURS) == set(CaseStatus)
+    expected = {"biased": "#b00020", "inconclusive": "#a06000", "equivalent": "#1b7f3b", "no_evidence": "#1b7f3b"}
+    assert {verdict: colours.verdict_colour(verdict) for verdict in expected} == expected
+    assert {v.label: colours.verdict_colour(v) for v in wc.Verdict} == expected
