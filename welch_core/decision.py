@@ -58,11 +58,12 @@ the claimed size off by the tolerance) <= alpha, whatever size is chosen: see `w
 
 Futility (`check`, with a tolerance): a look before the last, from `FUTILITY_PASSES` passes a side on, stops when
 the claim's size is out of the budget's reach at the current estimates (`ScaleResult.passes_needed` beyond the
-budget, or none) *and* no tile-channel could still reach `biased` by the budget with probability `FUTILITY_LOSS`
-if it held the bias the budget detects there with 80 % power (its minimum detectable bias): the largest
-conditional power over the tile-channels of the `biased` family (`Evidence.promise`, computed by
-`welch_core.looks.promise`). Stopping only then gives up at most `FUTILITY_LOSS` of the power against any such
-bias (each stop forgoes a rejection with conditional probability below it: Lan, Simon and Halperin 1982). The
+budget, or none) *and* no tile-channel could still reach `biased` by the budget with probability
+`Evidence.futility_loss` (the plan's, ``check --futility-loss``; `FUTILITY_LOSS` by default) if it held the bias
+the budget detects there with 80 % power (its minimum detectable bias): the largest conditional power over the
+tile-channels of the `biased` family (`Evidence.promise`, computed by `welch_core.looks.promise`). Stopping only
+then gives up at most that share of the power against any such bias (each stop forgoes a rejection with
+conditional probability below it: Lan, Simon and Halperin 1982). The
 stop is non-binding and only ever turns a later verdict into ``inconclusive`` (or a coarser ``equivalent``,
 which the fixed-sequence rule above allows at any look), so neither error rate grows; what it saves and costs is
 measured in `benchmarks.studies.same`.
