@@ -168,12 +168,7 @@ def _add_compare(sub) -> None:
         else:
             c.add_argument("run", metavar="RUN", help="a statistics file with at least 4 passes")
         add_options(c, name, ("alpha",))
-        c.add_argument(
-            "--pvalue-method",
-            default="exact",
-            choices=wc.PVALUE_METHODS,
-            help="exact Student t (default); gauss/as_erf: the paper's approximations where nu >= 20",
-        )
+        add_options(c, name, ("pvalue_method",))
         add_options(c, name, ("out",))
         add_options(c, name, ("tolerance", "equivalence_tile", "tile"))
         if name == "compare":  # a selftest's halves are subsets, which keep no pixel moments

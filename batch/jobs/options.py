@@ -25,6 +25,9 @@ from ..errors import BatchError
 from .lobes import LOBES, parse_lobes
 from .seeds import MAX_PASSES, MAX_SEED, format_seeds, parse_seeds
 
+#: The p-values' methods (`welch_core.ttest.PVALUE_METHODS`; this module stays free of numpy for the add-on).
+PVALUE_METHODS = ("exact", "gauss", "as_erf")
+
 #: Cycles' largest render side (it clamps larger values) and largest samples per pixel (2**24).
 MAX_RESOLUTION = 65536
 MAX_SPP = 2**24
@@ -879,6 +882,16 @@ OPTIONS = {
         ),
         # -- what one command alone takes
         Option(
+            "pvalue_method",
+            "--pvalue-method",
+            None,
+            "choice",
+            "exact Student t (default); gauss/as_erf: the paper's approximations where nu >= 20",
+            default="exact",
+            choices=PVALUE_METHODS,
+            uses=dict.fromkeys(("compare", "selftest"), _USE),
+        ),
+        Option(
             "test_blend",
             "--test-blend",
             None,
@@ -1065,8 +1078,8 @@ def add_options(parser, command: str, dests: Iterable[str] | None = None, side: 
             continue
         if "{default}" in help_text:
             help_text = help_text.format(default="auto" if auto and shown is None else option.show(shown))
-        elif shown not in (None, [], ()) and not use.required:
-            help_text += f" (default {option.show(shown)})"
+        elif shown not in (None, [], ()) and not use.required and "(default" not in help_text:
+            help_text += f" (default {option.show(shown)})"  # unless the help says it in its own words
         kwargs: dict[str, Any] = {"dest": dest_name, "help": help_text.replace("%", "%%")}
         if metavar:
             kwargs["metavar"] = metavar if " " not in metavar else tuple(metavar.split())

@@ -217,3 +217,9 @@ def test_a_command_parses_the_same_with_its_parser_alone(command):
     alone = build_parser(argv[0])
     assert vars(alone.parse_args(argv)) == vars(parse(*argv))
     assert set(parsers()) >= {command} and alone.format_usage() == build_parser().format_usage()
+
+
+def test_the_pvalue_methods_are_the_statistics_ones():
+    import welch_core as wc
+
+    assert options.OPTIONS["pvalue_method"].choices == options.PVALUE_METHODS == wc.PVALUE_METHODS
