@@ -46,7 +46,10 @@ def _run() -> int:
         from .jobs.protocol import Interrupts
 
         with (interrupts := Interrupts()):
-            from .cli import main
+            # An interrupt while the tool's modules import waits for the imports' end: raised inside the import
+            # machinery's own C code, it is printed there as a traceback before it reaches the handler below.
+            with Interrupts.held():
+                from .cli import main
 
             started = True
             code = main()  # which answers its own interrupts and errors
