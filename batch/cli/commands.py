@@ -86,7 +86,7 @@ def _add_render(sub) -> None:
     )
     jobs.add_arguments(r)
     add_options(r, "render", ("json_progress", "serve", "probe"))
-    add_cluster_arguments(r)
+    add_options(r, "render", ("workers", "scheduler"))
     add_options(r, "render", ("chunk",))
 
 
@@ -102,8 +102,7 @@ def _add_check(sub) -> None:
         "it rules out. Same build on both sides: paired (identical seeds) unless --unpaired; two builds: "
         "disjoint seeds. Ctrl-C keeps everything; --resume continues.",
     )
-    k.add_argument("blend", nargs="?", metavar="SCENE.blend", help="scene file of the reference side")
-    add_options(k, "check", ("scene",))
+    add_options(k, "check", ("blend", "scene"))
     add_options(k, "check", ("blend_scene", "overrides"))
     add_options(k, "check", ("test_blend",))
     add_options(k, "check", ("blend_scene",), side="test")
@@ -120,7 +119,7 @@ def _add_check(sub) -> None:
     add_options(k, "check", TEST_SIDE, side="test")
     add_options(k, "check", ("unpaired",))
     add_options(k, "check", ("seed_offset",))
-    add_cluster_arguments(k)
+    add_options(k, "check", ("workers", "scheduler"))
     add_options(k, "check", ("resume",))
     add_options(k, "check", ("json_progress",))
     add_options(k, "check", ("out",))
@@ -134,24 +133,7 @@ def _add_ingest(sub) -> None:
         help="turn EXR passes of any renderer into a statistics file",
         description="One EXR file per independent pass (its own seed), all the same size.",
     )
-    i.add_argument("passes", nargs="+", metavar="PASS.exr")
-    add_options(i, "ingest", ("spp", "tile"))
-    i.add_argument(
-        "--seeds",
-        type=jobs.seeds_arg,
-        help="the passes' seeds, in file order; without it each pass gets an id from its content, so the "
-        "run counts as independent of every other (unpaired test)",
-    )
-    i.add_argument("--renderer", default="unknown", help="renderer name to record")
-    i.add_argument(
-        "--layers",
-        type=lambda text: tuple(n.strip() for n in text.split(",") if n.strip()),
-        default=(),
-        metavar="NAME,...",
-        help="also read these layers of multilayer EXRs (each NAME.R/G/B, under any view-layer prefix) into "
-        "layers of the statistics file, tested by compare one by one (light components of other renderers)",
-    )
-    add_options(i, "ingest", ("on_nan",))
+    add_options(i, "ingest", ("pass_files", "spp", "tile", "seeds", "renderer", "layers", "on_nan"))
     add_options(i, "ingest", ("out",))
 
 
@@ -162,11 +144,7 @@ def _add_compare(sub) -> None:
         ("selftest", "A/A test: one run's two halves against each other"),
     ):
         c = sub.add_parser(name, help=text, description=text + " Writes report.json, maps, histogram, report.html.")
-        if name == "compare":
-            c.add_argument("ref", metavar="REF", help="statistics file of the reference")
-            c.add_argument("test", metavar="TEST", help="statistics file of the run under test")
-        else:
-            c.add_argument("run", metavar="RUN", help="a statistics file with at least 4 passes")
+        add_options(c, name, ("ref", "test") if name == "compare" else ("run",))
         add_options(c, name, ("alpha",))
         add_options(c, name, ("pvalue_method",))
         add_options(c, name, ("out",))
@@ -175,18 +153,7 @@ def _add_compare(sub) -> None:
             add_options(c, name, ("pixel_variance",))
         add_options(c, name, ("full_maps",))
         if name == "compare":
-            kind = c.add_mutually_exclusive_group()
-            kind.add_argument(
-                "--paired",
-                dest="kind",
-                action="store_const",
-                const="paired",
-                help="paired test (identical seeds on both sides)",
-            )
-            kind.add_argument(
-                "--unpaired", dest="kind", action="store_const", const="welch", help="Welch's test (disjoint seeds)"
-            )
-            c.set_defaults(kind="auto")
+            add_options(c, name, ("pairing",))
 
 
 def _add_merge(sub) -> None:
@@ -197,12 +164,10 @@ def _add_merge(sub) -> None:
         description="Runs merge when they are one configuration (scene, renderer and build, device, spp, tile, "
         "sampling pattern, settings and overrides) and have disjoint seeds.",
     )
-    m.add_argument("runs", nargs="+", metavar="STATS", help="statistics files to merge")
-    add_options(m, "merge", ("out",))
+    add_options(m, "merge", ("runs", "out"))
 
     lint = sub.add_parser("lint", help="list settings that make Cycles biased or passes dependent")
-    lint.add_argument("blend", metavar="SCENE.blend")
-    add_options(lint, "lint", ("blend_scene",))
+    add_options(lint, "lint", ("blend", "blend_scene"))
 
 
 def _add_suite(sub) -> None:
@@ -225,18 +190,14 @@ def _add_suite(sub) -> None:
         ("run", "render each case with the current build and decide it against its reference"),
     ):
         a = suite_sub.add_parser(action, help=text, description=text)
-        a.add_argument("suite_file", metavar="SUITE", help="a suite file (.toml), or `builtin`")
-        add_options(a, f"suite {action}", ("refs", "blender", "python", "device"))
-        a.add_argument("--filter", nargs="+", metavar="PATTERN", help="only the cases whose names match")
+        add_options(a, f"suite {action}", ("suite_file", "refs", "blender", "python", "device", "filter"))
         add_options(a, f"suite {action}", ("json_progress",))
         if action == "bless":
             add_options(a, "suite bless", ("force", "missing"))
         else:
             add_options(a, "suite run", ("out",))
             add_options(a, "suite run", ("overrides",))
-            add_options(a, "suite run", ("resume",))
-            add_cluster_arguments(a)
-            add_options(a, "suite run", ("seed_offset",))
+            add_options(a, "suite run", ("resume", "workers", "scheduler", "seed_offset"))
 
 
 def _add_matrix(sub) -> None:
@@ -257,9 +218,7 @@ def _add_matrix(sub) -> None:
                "is decided at alpha / steps, so the chance of following a difference that is not there is at most "
                "alpha." if name == "bisect" else " Each cell is decided at alpha on its own."),
         )  # fmt: skip
-        m.add_argument("blend", nargs="?", metavar="SCENE.blend", help="the scene file")
-        add_options(m, name, ("scene",))
-        m.add_argument("--builds", nargs="+", required=True, metavar="BUILD", help="the builds, oldest first")
+        add_options(m, name, ("blend", "scene", "builds"))
         add_options(m, name, ("blend_scene", "resolution", "device", "sampling_pattern", "overrides", "spp", "tile",
                               "passes", "alpha", "tolerance"))  # fmt: skip
         if name == "matrix":
@@ -292,27 +251,17 @@ def _add_audit(sub) -> None:
         "against itself included), 2 a usage error or a cell that could not run, 3 a control was found in no scene "
         "(the audit could not have found a bias).",
     )
-    a.add_argument("blends", nargs="*", metavar="SCENE.blend", help="scene files to audit")
-    a.add_argument("--scene", dest="scenes", action="append", default=[], metavar="NAME",
-                   help="a built-in scene to audit, repeatable; `all` for every one (default: every one where no "
-                   "scene file is given)")  # fmt: skip
-    add_options(a, "audit", ("changes_file",))
-    a.add_argument("--only", nargs="+", metavar="CHANGE", help="only these changes, by name (the default against "
-                   "itself is always audited)")  # fmt: skip
+    add_options(a, "audit", ("blends", "scenes", "changes_file", "only"))
     build = a.add_mutually_exclusive_group()
     add_options(build, "audit", ("blender", "python"))
     add_options(build, "audit", ("release",))
-    a.add_argument("--releases", nargs="+", metavar="BUILD", help="bisect each confirmed difference over these "
-                   "builds, oldest first (as bisect --builds: current, a release such as 4.5.4, or a path); the "
-                   "audited release is the last")  # fmt: skip
-    add_options(a, "audit", ("bisect_passes",))
+    add_options(a, "audit", ("releases", "bisect_passes"))
     add_options(
         a,
         "audit",
         ("resolution", "tile", "max_passes", "max_seconds", "min_passes", "alpha", "tolerance", "seed_offset"),
     )
-    add_cluster_arguments(a)
-    add_options(a, "audit", ("plan",))
+    add_options(a, "audit", ("workers", "scheduler", "plan"))
     add_options(a, "audit", ("resume", "out"))
 
 
@@ -328,31 +277,10 @@ def _add_bpy(sub) -> None:
         "5.1 and 5.2.x LTS need 3.13. `bpy --list` says which each cached one has.",
         epilog='Example: python -m batch check --scene corner --python "$(python -m batch bpy 4.5.4)" --out c/',
     )
-    r.add_argument("version", nargs="?", metavar="VERSION", help="the release, e.g. 4.5.4")
-    add_options(r, "bpy", ("list", "base_python"))
+    add_options(r, "bpy", ("version", "list", "base_python"))
 
     d = sub.add_parser("demo", help="the built-in corner scene against a biased variant (walls 0.21 instead of 0.2)")
-    d.add_argument("--out", default=os.path.join("out", "demo"), metavar="REPORT_DIR")
-    add_options(d, "demo", ("passes",))
-    d.add_argument("--resolution", type=jobs.positive_int, default=None, help="square image size in pixels")
-
-
-def add_cluster_arguments(parser) -> None:
-    """--workers / --scheduler: the passes on a Dask cluster (render, check, suite run)."""
-    where = parser.add_mutually_exclusive_group()
-    where.add_argument(
-        "--workers",
-        type=jobs.positive_int,
-        metavar="N",
-        help="render the passes on N worker processes on this machine (a Dask LocalCluster, the cores split among "
-        "them; one for all sides and cases); pays off for long runs. Needs the `workers` extra",
-    )
-    where.add_argument(
-        "--scheduler",
-        metavar="ADDRESS",
-        help="render the passes on a running Dask cluster, e.g. tcp://head:8786; every worker needs this tool, its "
-        "Blender and the scene (and its textures) at the same path. Needs the `workers` extra",
-    )
+    add_options(d, "demo", ("out", "passes", "square"))
 
 
 def argv_after_dashdash(argv: list[str]) -> list[str]:
@@ -498,18 +426,18 @@ def cmd_ingest(args) -> int:
     from ..jobs.passes import add_layered_pass, channel_layers
     from ..present.progress import Progress
 
-    if args.seeds is not None and len(args.seeds) != len(args.passes):
-        raise BatchError(f"--seeds gives {len(args.seeds)} seeds for {len(args.passes)} files")
+    if args.seeds is not None and len(args.seeds) != len(args.pass_files):
+        raise BatchError(f"--seeds gives {len(args.seeds)} seeds for {len(args.pass_files)} files")
     _refuse_existing(args.out)
     with OutputLock(args.out):
-        first = wc.read_exr(args.passes[0])
+        first = wc.read_exr(args.pass_files[0])
         info = wc.RunInfo(spp=args.spp, renderer=args.renderer)
         stats = wc.TileStats(first.shape[0], first.shape[1], args.tile, 3, info, keep_pixel_moments=True)
         layers = {name: wc.TileStats(first.shape[0], first.shape[1], args.tile, 3, info) for name in args.layers}
-        progress = Progress(len(args.passes), label="ingest")
+        progress = Progress(len(args.pass_files), label="ingest")
         progress.start(0, args.out)
         negative = False
-        for index, path in enumerate(args.passes):
+        for index, path in enumerate(args.pass_files):
             start = time.perf_counter()
             image = first if index == 0 else wc.read_exr(path)
             images = {"combined": image}
@@ -562,7 +490,7 @@ def cmd_compare(args) -> int:
         args.test,
         args.out,
         alpha=args.alpha,
-        kind=args.kind,
+        kind=args.pairing,
         pvalue_method=args.pvalue_method,
         tile=args.tile,
         tolerance=args.tolerance,
@@ -836,7 +764,7 @@ def cmd_bpy(args) -> int:
 def cmd_demo(args) -> int:
     from .demo import run_demo
 
-    run_demo(args.out, passes=args.passes, resolution=args.resolution)
+    run_demo(args.out, passes=args.passes, resolution=args.square)
     return Exit.OK  # the demo's bias is planted: finding it is the demo working, not a failure
 
 

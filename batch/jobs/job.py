@@ -17,7 +17,7 @@ from ..errors import BatchError
 from . import options
 from .lobes import LOBES
 from .options import DEVICES, ON_NAN, add_options, default
-from .seeds import MAX_PASSES, parse_seeds
+from .seeds import MAX_PASSES
 from .template import words
 
 #: The built-in scenes (`batch.blender.scenes.SCENES` builds them; a test holds the two together), named here so
@@ -149,7 +149,7 @@ class RenderJob:
             unset = value is None or value is False or value == ()
             if unset or (field not in ALWAYS_WRITTEN and value == defaults[field]):
                 continue
-            argv += [value] if dest == "blend" else options.to_argv(options.OPTIONS[dest], value)
+            argv += options.to_argv(options.OPTIONS[dest], value)
         return argv
 
 
@@ -178,29 +178,9 @@ def _check_range(option: str, value, low: int, high: int) -> None:
     options.integer(option, value, low, high)
 
 
-def positive_int(text: str) -> int:
-    """argparse type: an integer >= 1."""
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
-    return value
-
-
-def seeds_arg(text: str) -> list[int]:
-    """argparse type: ``A:B`` or ``S1,S2,...``."""
-    try:
-        return parse_seeds(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc).removeprefix("--seeds ")) from None
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the options of a render job (the ``render`` command's) as `batch.jobs.options` declares them."""
-    parser.add_argument("blend", nargs="?", metavar="SCENE.blend", help="scene file (default: the file Blender opened)")
-    declared = ("scene", "seeds", "blend_scene", "spp", "tile", "resolution", "device", "sampling_pattern", "overrides",
-                "lobes", "blender", "python", "pass_command", "command_dir", "resume", "on_nan", "checkpoint_every",
-                "out", "pass_images")  # fmt: skip
+    declared = ("blend", "scene", "seeds", "blend_scene", "spp", "tile", "resolution", "device", "sampling_pattern",
+                "overrides", "lobes", "blender", "python", "pass_command", "command_dir", "resume", "on_nan",
+                "checkpoint_every", "out", "pass_images")  # fmt: skip
     add_options(parser, "render", declared)

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import weakref
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field, replace
@@ -41,6 +42,8 @@ MIN_TOLERANCE = 1e-5
 #: The largest seed offset: an unpaired check's test seeds (from `MAX_PASSES`, `batch.decide.check`) and a
 #: budget of `MAX_PASSES` after it stay within Cycles' seeds.
 MAX_SEED_OFFSET = MAX_SEED + 1 - 2 * MAX_PASSES
+#: The most local worker processes (--workers): far more than any machine's cores.
+MAX_WORKERS = 4096
 
 #: The devices a job may ask for: the CPU, the first GPU backend that has a device, or one backend.
 GPU_BACKENDS = ("OPTIX", "CUDA", "HIP", "METAL", "ONEAPI")
@@ -142,6 +145,14 @@ def _lobes(name: str, value) -> tuple[str, ...]:
         raise BatchError(f"{name} takes 'all' or some of {','.join(LOBES)}, got {_show(value)}") from None
 
 
+def _names(name: str, value) -> tuple[str, ...]:
+    """Names separated by commas (``NAME,...``), or a list of them."""
+    items = value.split(",") if isinstance(value, str) else value
+    if not isinstance(items, list | tuple):
+        raise BatchError(f"{name} must be names separated by commas, got {_show(value)}")
+    return tuple(text(name, item).strip() for item in items if str(item).strip())
+
+
 def _seeds(name: str, value) -> list[int]:
     try:
         return parse_seeds(value)
@@ -173,6 +184,8 @@ KINDS: dict[str, Callable[[Option, str, Any], Any]] = {
     "override": lambda o, n, v: _override(n, v),
     "seeds": lambda o, n, v: _seeds(n, v),
     "flag": lambda o, n, v: bool(v),  # given or not: no value to check
+    "names": lambda o, n, v: _names(n, v),
+    "switch": lambda o, n, v: choice(n, v, tuple(const for _flag, const, _help in o.switches)),
 }
 #: The kinds whose limits exclude the bounds themselves: (low, high) open or half-open, as their errors say.
 OPEN_LOW = ("seconds", "percentage", "probability")
@@ -201,6 +214,8 @@ class Use:
     test_help: str | None = None
     auto: bool = False  # ``auto`` is a value here: None, which the command resolves (check's --spp)
     metavar: str | None = None  # what the value is here, where the option's own does not say it (--out DIR)
+    nargs: str | None = None  # argparse's: ``?`` an optional positional, ``+`` and ``*`` a list in one flag
+    exclusive: str | None = None  # the options of one name here are mutually exclusive (--workers, --scheduler)
 
 
 _USE = Use()
@@ -208,11 +223,11 @@ _USE = Use()
 
 @dataclass(frozen=True)
 class Option:
-    """One option: its destination (a `RenderJob` or check field, an add-on property), its command-line flag, its
-    key in a suite case (None: not there), its kind (`KINDS`: how a value is checked) with its limits (`low` and
-    `high` for numbers, `choices`), its default, its help, the places that take it (`uses`: place -> `Use`) and
-    the sides of a check that take their own value (``test``: ``--test-blender``; for an option that only `draws`
-    the passes also a suite case's ``test_spp``)."""
+    """One option: its destination (a `RenderJob` or check field, an add-on property), its command-line flag (a
+    positional argument's: its name as shown, without ``-``), its key in a suite case (None: not there), its kind
+    (`KINDS`: how a value is checked) with its limits (`low` and `high` for numbers, `choices`), its default, its
+    help, the places that take it (`uses`: place -> `Use`) and the sides of a check that take their own value
+    (``test``: ``--test-blender``; for an option that only `draws` the passes also a suite case's ``test_spp``)."""
 
     dest: str
     flag: str
@@ -230,6 +245,12 @@ class Option:
     uses: Mapping[str, Use] = field(default_factory=dict)
     sides: tuple[str, ...] = ("reference",)
     draws: bool = False  # changes only how the passes are drawn: both sides converge to the same image
+    #: A `switch`'s flags, each with the value it stores and its help (compare's --paired and --unpaired).
+    switches: tuple[tuple[str, str, str], ...] = ()
+
+    @property
+    def positional(self) -> bool:
+        return not self.flag.startswith("-")
 
     def convert(self, name: str, value):
         """`value` checked (the value itself, or a tuple for a resolution and lobes), or BatchError naming `name`."""
@@ -270,6 +291,9 @@ _RENDERING = ("render", "check", "matrix", "bisect")
 _JOB = (*_RENDERING, "case")
 #: The sides of an option that the test side of a check may set apart.
 _BOTH = ("reference", "test")
+
+#: The commands that render on a Dask cluster where asked (--workers, --scheduler).
+_CLUSTERED = ("render", "check", "suite run", "audit")
 
 #: The help of matrix's and bisect's --tolerance.
 _MATRIX_TOLERANCE = "also say `equivalent` where every finest tile is within it (default: off)"
@@ -793,7 +817,13 @@ OPTIONS = {
             None,
             "seeds",
             "A:B (half-open range) or S1,S2,...",
-            uses={"render": Use(required=True)},
+            uses={
+                "render": Use(required=True),
+                "ingest": Use(
+                    help="the passes' seeds, in file order; without it each pass gets an id from its "
+                    "content, so the run counts as independent of every other (unpaired test)"
+                ),
+            },
         ),
         Option(
             "resume",
@@ -847,6 +877,11 @@ OPTIONS = {
                     required=True,
                     help="folder for the cells' checks, summary.json, junit.xml and index.html",
                     metavar="DIR",
+                ),
+                "demo": Use(
+                    os.path.join("out", "demo"),
+                    "folder for both sides' statistics and the report",
+                    metavar="REPORT_DIR",
                 ),
             },
         ),
@@ -1006,6 +1041,166 @@ OPTIONS = {
             metavar="PATH",
             uses={"bpy": _USE},
         ),
+        # -- the files and names a command works on (positional arguments), and the options of one command
+        Option(
+            "blend",
+            "SCENE.blend",
+            None,  # a suite case's scene file is checked by the suite
+            "text",
+            "the scene file",
+            uses={
+                "render": Use(nargs="?", help="scene file (default: the file Blender opened)"),
+                "check": Use(nargs="?", help="scene file of the reference side"),
+                "lint": Use(required=True, help="the scene file to lint"),
+                **dict.fromkeys(("matrix", "bisect"), Use(nargs="?")),
+            },
+        ),
+        Option(
+            "blends", "SCENE.blend", None, "text", "scene files to audit", default=(), uses={"audit": Use(nargs="*")}
+        ),
+        Option(
+            "pass_files",
+            "PASS.exr",
+            None,
+            "text",
+            "the passes' EXR files, one a pass",
+            uses={"ingest": Use(nargs="+", required=True)},
+        ),
+        Option(
+            "runs", "STATS", None, "text", "statistics files to merge", uses={"merge": Use(nargs="+", required=True)}
+        ),
+        Option("ref", "REF", None, "text", "statistics file of the reference", uses={"compare": Use(required=True)}),
+        Option(
+            "test", "TEST", None, "text", "statistics file of the run under test", uses={"compare": Use(required=True)}
+        ),
+        Option(
+            "run",
+            "RUN",
+            None,
+            "text",
+            "a statistics file with at least 4 passes",
+            uses={"selftest": Use(required=True)},
+        ),
+        Option(
+            "suite_file",
+            "SUITE",
+            None,
+            "text",
+            "a suite file (.toml), or `builtin`",
+            uses=dict.fromkeys(("suite bless", "suite run"), Use(required=True)),
+        ),
+        Option("version", "VERSION", None, "text", "the release, e.g. 4.5.4", uses={"bpy": Use(nargs="?")}),
+        Option(
+            "pairing",
+            "--paired",
+            None,
+            "switch",
+            "the test of two finished runs",
+            default="auto",
+            switches=(
+                ("--paired", "paired", "paired test (identical seeds on both sides)"),
+                ("--unpaired", "welch", "Welch's test (disjoint seeds)"),
+            ),
+            uses={"compare": _USE},
+        ),
+        Option(
+            "renderer", "--renderer", None, "text", "renderer name to record", default="unknown", uses={"ingest": _USE}
+        ),
+        Option(
+            "layers",
+            "--layers",
+            None,
+            "names",
+            "also read these layers of multilayer EXRs (each NAME.R/G/B, under any view-layer prefix) into layers of "
+            "the statistics file, tested by compare one by one (light components of other renderers)",
+            default=(),
+            metavar="NAME,...",
+            uses={"ingest": _USE},
+        ),
+        Option(
+            "filter",
+            "--filter",
+            None,
+            "text",
+            "only the cases whose names match",
+            metavar="PATTERN",
+            uses=dict.fromkeys(("suite bless", "suite run"), Use(nargs="+")),
+        ),
+        Option(
+            "builds",
+            "--builds",
+            None,
+            "text",
+            "the builds, oldest first",
+            metavar="BUILD",
+            uses=dict.fromkeys(("matrix", "bisect"), Use(nargs="+", required=True)),
+        ),
+        Option(
+            "scenes",
+            "--scene",
+            None,
+            "text",
+            "a built-in scene to audit, repeatable; `all` for every one (default: every one where no scene file is "
+            "given)",
+            default=(),
+            metavar="NAME",
+            many=True,
+            uses={"audit": _USE},
+        ),
+        Option(
+            "only",
+            "--only",
+            None,
+            "text",
+            "only these changes, by name (the default against itself is always audited)",
+            metavar="CHANGE",
+            uses={"audit": Use(nargs="+")},
+        ),
+        Option(
+            "releases",
+            "--releases",
+            None,
+            "text",
+            "bisect each confirmed difference over these builds, oldest first (as bisect --builds: current, a release "
+            "such as 4.5.4, or a path); the audited release is the last",
+            metavar="BUILD",
+            uses={"audit": Use(nargs="+")},
+        ),
+        Option(
+            "square",
+            "--resolution",
+            None,
+            "integer",
+            "square image size in pixels",
+            low=1,
+            high=MAX_RESOLUTION,
+            metavar="RESOLUTION",
+            number=True,
+            uses={"demo": _USE},
+        ),
+        Option(
+            "workers",
+            "--workers",
+            None,
+            "integer",
+            "render the passes on N worker processes on this machine (a Dask LocalCluster, the cores split among "
+            "them; one for all sides and cases); pays off for long runs. Needs the `workers` extra",
+            low=1,
+            high=MAX_WORKERS,
+            metavar="N",
+            number=True,
+            uses=dict.fromkeys(_CLUSTERED, Use(exclusive="cluster")),
+        ),
+        Option(
+            "scheduler",
+            "--scheduler",
+            None,
+            "text",
+            "render the passes on a running Dask cluster, e.g. tcp://head:8786; every worker needs this tool, its "
+            "Blender and the scene (and its textures) at the same path. Needs the `workers` extra",
+            metavar="ADDRESS",
+            uses=dict.fromkeys(_CLUSTERED, Use(exclusive="cluster")),
+        ),
     )
 }
 
@@ -1038,6 +1233,8 @@ def argparse_type(option: Option, flag: str | None = None, auto: bool = False) -
 
 def to_argv(option: Option, value) -> list[str]:
     """`value` on the command line as `option`'s flag and its text: what its parser reads back to `value`."""
+    if option.positional:
+        return [str(value)]
     if option.kind == "flag":
         return [option.flag] if value else []
     if option.many:
@@ -1072,9 +1269,16 @@ def add_options(parser, command: str, dests: Iterable[str] | None = None, side: 
             help_text = use.test_help or f"the test side's {what} (default: the reference's)"
             value = shown = () if option.many else None
         auto = use.auto and side == "reference"
+        target = _group(parser, use.exclusive) if use.exclusive else parser
         if option.kind == "flag":  # given or not; a flag that turns something off stores False
             action = "store_false" if option.default is True else "store_true"
-            parser.add_argument(flag, dest=dest_name, action=action, help=help_text.replace("%", "%%"))
+            target.add_argument(flag, dest=dest_name, action=action, help=help_text.replace("%", "%%"))
+            continue
+        if option.kind == "switch":  # one of its flags, each storing its value
+            group = parser.add_mutually_exclusive_group()
+            for switch, const, said in option.switches:
+                group.add_argument(switch, dest=dest_name, action="store_const", const=const, help=said)
+            parser.set_defaults(**{dest_name: value})
             continue
         if "{default}" in help_text:
             help_text = help_text.format(default="auto" if auto and shown is None else option.show(shown))
@@ -1090,17 +1294,31 @@ def add_options(parser, command: str, dests: Iterable[str] | None = None, side: 
             kwargs["choices"] = option.choices
         else:
             kwargs["type"] = argparse_type(option, flag, auto)
+        if use.nargs:
+            kwargs["nargs"] = use.nargs
         if option.many:
             kwargs |= {"action": "append", "default": []}
-        elif use.required:
+        elif use.required and not option.positional:
             kwargs["required"] = True
-        else:
+        elif not use.required:
             kwargs["default"] = value
-        parser.add_argument(flag, **kwargs)
+        if option.positional:  # its name is its dest; it is shown as its flag
+            target.add_argument(kwargs.pop("dest"), **kwargs | {"metavar": flag})
+        else:
+            target.add_argument(flag, **kwargs)
 
 
-#: The options each parser was given (`add_options`), by destination and side.
+def _group(parser, name: str):
+    """The mutually exclusive group `name` of `parser`, made where it is first used."""
+    groups = _GROUPS.setdefault(parser, {})
+    if name not in groups:
+        groups[name] = parser.add_mutually_exclusive_group()
+    return groups[name]
+
+
+#: The options each parser was given (`add_options`), by destination and side; its mutually exclusive groups.
 _ADDED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_GROUPS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def _case_options() -> tuple[Option, ...]:

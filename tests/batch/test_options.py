@@ -34,13 +34,6 @@ ARGV = {
 }
 #: The places that are not commands: a suite file's case and [suite] table, the add-on's panel.
 NOT_COMMANDS = {"case", "suite", "addon"}
-#: Flags of a declared option's name that are another option: demo's --resolution is one side of a square image,
-#: audit's --scene is repeatable (the built-in scenes to audit).
-#: Flags of a declared option's name that mean another thing to one command: compare's --unpaired chooses the test
-#: of finished runs (with --paired), check's renders disjoint seeds.
-OTHER_OPTIONS = {("demo", "--resolution"), ("audit", "--scene"), ("ingest", "--seeds"), ("demo", "--out"),
-                 ("compare", "--unpaired")}  # fmt: skip
-
 USES = [(dest, place) for dest, o in OPTIONS.items() for place in o.uses if place not in NOT_COMMANDS]
 
 
@@ -76,7 +69,8 @@ def test_a_command_parses_the_declared_default(dest, command):
         return
     parsed = getattr(parse(*ARGV[command]), dest)
     expected = None if use.deferred else option.default_for(command)
-    assert (list(parsed) if option.many else parsed) == (list(expected) if option.many else expected)
+    listed = option.many or use.nargs == "*"
+    assert (list(parsed) if listed else parsed) == (list(expected) if listed else expected)
     if "test" in option.sides and use.test_help is not None:
         assert getattr(parse(*ARGV[command]), f"test_{dest}") in (None, [])
 
@@ -114,14 +108,28 @@ def test_no_command_declares_a_declared_option_again():
     says the command takes it."""
     flags = {}
     for option in OPTIONS.values():
-        flags.setdefault(option.flag, []).append(option)
+        for flag in (option.flag, *(switch for switch, _const, _help in option.switches)):
+            flags.setdefault(flag, []).append(option)
         if "test" in option.sides:
             flags.setdefault("--test-" + option.flag.removeprefix("--"), []).append(option)
     for command, parser in parsers().items():
         for action in parser._actions:
             for flag in action.option_strings:
-                if flag in flags and (command, flag) not in OTHER_OPTIONS:
+                if flag in flags:
                     assert any(command in o.uses for o in flags[flag]), f"{command} {flag} is declared by hand"
+
+
+def test_every_argument_of_every_command_is_declared():
+    """No parser is given an argument but through the declaration (`options.add_options`): every flag and
+    positional argument of every command is an option's, or argparse's own --help."""
+    for command, parser in parsers().items():
+        for action in parser._actions:
+            if isinstance(action, argparse._HelpAction | argparse._SubParsersAction):
+                continue
+            option = OPTIONS[action.dest.removeprefix("test_") if action.dest not in OPTIONS else action.dest]
+            assert command in option.uses, f"{command} {action.dest}"
+            shown = {option.flag, "--test-" + option.flag.removeprefix("--")} | {s for s, _c, _h in option.switches}
+            assert set(action.option_strings or [action.metavar]) <= shown, f"{command} {action.dest}"
 
 
 def test_the_test_side_of_a_check():
