@@ -20,7 +20,6 @@ they stopped. Nothing here imports bpy.
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import json
 import os
 import shlex
@@ -219,6 +218,7 @@ def cell_job(plan: AuditPlan, cell: Cell, role: str, folder: Path, resume: bool 
         out=str(folder),
         blend=scene.blend,
         scene=scene.scene,
+        reference_overrides=reference,  # its default, set explicitly (``check`` gives its reference none)
         overrides=test,
         spp=change.samples,
         tile=spec.tile,
@@ -241,9 +241,7 @@ def cell_job(plan: AuditPlan, cell: Cell, role: str, folder: Path, resume: bool 
         max_seconds=spec.max_seconds,
         min_passes=spec.floor,
     )
-    job = check_job(request)
-    # The reference side's own overrides: its default, set explicitly (``check`` gives its reference none).
-    return dataclasses.replace(job, reference=job.reference.replace(overrides=reference))
+    return check_job(request)
 
 
 def check_command(plan: AuditPlan, cell: Cell, role: str, out: Path) -> str:

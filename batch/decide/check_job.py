@@ -121,7 +121,13 @@ class CheckRequest:
     blend_scene: str | None = None
     test_blend: str | None = None
     test_blend_scene: str | None = None
-    overrides: tuple[str, ...] = ()
+    overrides: tuple[str, ...] = ()  # the test side's
+    #: The reference side's own overrides (the command line gives it none: its scene holds its values; a suite
+    #: case's overrides are both sides', an audit sets each side's value of the change explicitly).
+    reference_overrides: tuple[str, ...] = ()
+    #: A finished statistics file as the reference (a suite's blessed one): only the test side renders, on the
+    #: seeds after the reference's, and the reference's device is the one it was rendered on.
+    reference_stats: str | None = None
     spp: int | None = default("spp", "check")  # None: auto (`batch.jobs.samples.auto_samples`)
     tile: int = default("tile", "check")
     resolution: tuple[int, int] | None = None
@@ -155,8 +161,13 @@ class CheckRequest:
 
     @classmethod
     def from_args(cls, args) -> CheckRequest:
-        """The request of ``check``'s parsed command line."""
-        return cls(**{f.name: getattr(args, f.name) for f in dataclasses.fields(cls)})
+        """The request of ``check``'s parsed command line (the fields it has no option for keep their defaults:
+        a finished reference, the reference's overrides)."""
+        return cls(**{f.name: getattr(args, f.name) for f in dataclasses.fields(cls) if f.name not in _NOT_ARGUMENTS})
+
+
+#: The request's fields that ``check``'s command line does not give.
+_NOT_ARGUMENTS = ("reference_overrides", "reference_stats")
 
 
 def check_job_from_args(args) -> CheckJob:
@@ -215,6 +226,12 @@ def check_job(request: CheckRequest, probe=None) -> CheckJob:
     offset = args.seed_offset
     ref_seeds = range(offset, offset + count)
     test_seeds = ref_seeds if paired else range(UNPAIRED_SEEDS + offset, UNPAIRED_SEEDS + offset + count)
+    fixed = {}  # a finished reference: its file, seeds and device
+    if args.reference_stats is not None:
+        stored = wc.load_stats(args.reference_stats, pixels=False)
+        ref_seeds, first = stored.seeds, max(stored.seeds) + 1 + offset
+        test_seeds, paired = range(first, first + count), False
+        fixed = {"out": args.reference_stats, "device": stored.info.device or "CPU", "resume": False}
     out = Path(args.out)
     common = {
         "spp": args.spp or 1,  # auto: resolved below
@@ -235,9 +252,10 @@ def check_job(request: CheckRequest, probe=None) -> CheckJob:
         blend_scene=args.blend_scene,
         blender=args.blender,
         python=args.python,
+        overrides=tuple(args.reference_overrides),
         command=args.pass_command,
         **common,
-    )
+    ).replace(**fixed)
     own = {dest: value for dest in TEST_SIDE if (value := getattr(args, f"test_{dest}", None)) is not None}
     test = RenderJob(
         out=str(out / "test.npz"),
@@ -258,7 +276,7 @@ def check_job(request: CheckRequest, probe=None) -> CheckJob:
             "--test-sampling-pattern, or --unpaired for an A/A check"
         )
     if not args.resume:
-        for job in (reference, test):
+        for job in (reference, test)[1 if fixed else 0 :]:
             if Path(job.out).exists():
                 raise BatchError(f"{job.out} already exists: pass --resume to continue the check, or another --out")
     auto = AutoSamples(args.spp) if args.spp is not None else _auto_samples(reference, test, probe)
@@ -272,7 +290,7 @@ def check_job(request: CheckRequest, probe=None) -> CheckJob:
     # the claim, the stops, resuming, the cluster, the seed offset).
     carried = {f.name: getattr(args, f.name) for f in dataclasses.fields(CheckJob) if hasattr(args, f.name)}
     made = {"reference": reference, "test": test, "out": str(out), "max_passes": max_passes}
-    return CheckJob(**carried | made, auto_samples=auto.to_json())
+    return CheckJob(**carried | made, fixed_reference=bool(fixed), auto_samples=auto.to_json())
 
 
 def _auto_samples(reference: RenderJob, test: RenderJob, probe=None) -> AutoSamples:

@@ -71,7 +71,7 @@ from ..jobs.job import BUILTIN_SCENES, NO_GPU_MESSAGE, RenderJob, builtin_scene_
 from ..jobs.launch import blender_version, bpy_version, no_bpy
 from ..jobs.protocol import FAILING, CaseStatus, verdict_status
 from .check import run_check
-from .check_job import CheckJob
+from .check_job import CheckRequest, check_job
 
 #: The suite that ships with the tool: one minimal scene per Cycles feature, and its references.
 BUILTIN = Path(__file__).with_name("suites") / "builtin.toml"
@@ -502,7 +502,6 @@ def run_suite(suite: Suite, cases: list[Case], refs: Path, out: Path, progress_f
 def _run_case(
     suite, case, device, refs, out, progress_factory, build, overrides, resume, seed_offset, where
 ) -> CaseResult:
-    blender, python = build  # the test side's: a Blender binary or a Python with bpy (None, None: this bpy)
     folder = out / case.name / device
     try:
         reference = wc.load_stats(reference_path(refs, case), pixels=False)
@@ -513,29 +512,13 @@ def _run_case(
         advice = f"to render it anew: {bless_command(suite, case, refs)}"
         message = f"the reference {reference_path(refs, case)}: {problem} ({advice})"
         return CaseResult(case, device, CaseStatus.ERROR, message=message)
-    first = max(reference.seeds) + 1 + seed_offset
-    # `passes` bounds the test side under a time budget too: past the reference's passes the two means differ in
-    # how often they catch a rare bright path, which Welch's t does not forgive when one side has few passes.
-    budget, count = (case.passes if case.seconds is None else None), case.passes
     start = time.perf_counter()
     resume = resume and (folder / "check.json").exists()  # a case the interrupted run had not started is new
     try:
-        test = case.job(str(folder / "test.npz"), range(first, first + count), device, blender, overrides, True, python)
-        job = CheckJob(
-            reference=case.job(str(reference_path(refs, case)), reference.seeds, reference.info.device or "CPU", None),
-            test=test.replace(resume=resume),
-            out=str(folder),
-            max_passes=budget,
-            max_seconds=case.seconds,
-            alpha=suite.alpha,
-            tolerance=case.tolerance,
-            equivalence_tile=case.equivalence_tile,
-            pixel_variance=case.pixel_variance,
-            resume=resume,
-            fixed_reference=True,
-            seed_offset=seed_offset,
-        )
-        verdict, summary = run_check(job, progress_factory(count), where)
+        request = case_request(suite, case, device, reference_path(refs, case), folder, build, overrides,
+                               seed_offset, resume)  # fmt: skip
+        job = check_job(request)
+        verdict, summary = run_check(job, progress_factory(case.passes), where)
     except Undecided as exc:  # its time budget ended the first passes: nothing to look at
         return CaseResult(case, device, CaseStatus.INCONCLUSIVE, wc.Verdict.INCONCLUSIVE.label, str(exc),
                           seconds=time.perf_counter() - start)  # fmt: skip
@@ -558,6 +541,44 @@ def _run_case(
     return CaseResult(case, device, status, verdict.label, message,
                    seconds=check["looks"][-1]["seconds"] if check["looks"] else 0.0, passes=check["passes"],
                    folder=str(folder), summary=summary)  # fmt: skip
+
+
+def case_request(suite: Suite, case: Case, device: str, reference: Path, folder: Path, build, overrides=(),
+                 seed_offset: int = 0, resume: bool = False) -> CheckRequest:  # fmt: skip
+    """The check of `case` on `device` against its blessed `reference` (`batch.decide.check_job`): the case's
+    settings on both sides, the run's build (a Blender binary or a Python with bpy; None, None: this bpy) and its
+    `overrides` (``suite run --set``) on the test side. The test side renders on the seeds after the reference's;
+    `passes` bounds it under a time budget too: past the reference's passes the two means differ in how often
+    they catch a rare bright path, which Welch's t does not forgive when one side has few passes."""
+    blender, python = build
+    return CheckRequest(
+        out=str(folder),
+        reference_stats=str(reference),
+        blend=case.blend,
+        scene=case.scene,
+        blend_scene=case.blend_scene,
+        reference_overrides=case.overrides,
+        overrides=case.overrides + tuple(overrides),
+        spp=case.spp,
+        test_spp=case.test_spp,
+        tile=case.tile,
+        resolution=case.resolution,
+        device=device,
+        sampling_pattern=case.sampling_pattern,
+        test_sampling_pattern=case.test_sampling_pattern,
+        test_blender=blender,
+        test_python=python,
+        pass_command=case.command,
+        command_dir=case.folder,
+        max_passes=case.passes,
+        max_seconds=case.seconds,
+        alpha=suite.alpha,
+        tolerance=case.tolerance,
+        equivalence_tile=case.equivalence_tile,
+        pixel_variance=case.pixel_variance,
+        seed_offset=seed_offset,
+        resume=resume,
+    )
 
 
 def reference_problem(case: Case, reference: wc.TileStats, refs: Path) -> str | None:

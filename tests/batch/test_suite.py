@@ -4,6 +4,7 @@ as failed, a missing device skipped, and the dashboard in a real browser."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 import shutil
@@ -143,6 +144,26 @@ def test_the_builtin_suite_names_real_scenes_and_valid_planted_changes():
         if case.planted:
             parse_override(case.planted)
         assert suites.reference_path(suites.BUILTIN_REFS, case).is_file(), case.name
+
+
+def test_a_case_is_checked_as_the_check_its_request_describes(tmp_path):
+    """A case's check is made as every other front end's (`CheckRequest` -> `check_job`): the blessed reference is
+    not rendered, the test side renders on the seeds after its seeds (and --seed-offset's), the case's overrides
+    are both sides', ``suite run --set`` and the run's build are the test side's."""
+    from batch.decide.check_job import check_job
+
+    suite = suites.load_suite("builtin")
+    case = dataclasses.replace(suite.cases[0], overrides=("cycles.sample_clamp_direct=0",))
+    stored = suites.reference_path(suites.BUILTIN_REFS, case)
+    request = suites.case_request(suite, case, "CPU", stored, tmp_path / "c", (None, "/py"), ("cycles.seed=1",), 5)
+    job = check_job(request)
+    seeds = suites.wc.load_stats(stored, pixels=False).seeds
+    assert job.fixed_reference and not job.paired and job.reference.out == str(stored)
+    assert job.reference.seeds == tuple(seeds) and job.test.seeds == tuple(
+        range(max(seeds) + 6, max(seeds) + 6 + case.passes)
+    )
+    assert job.reference.overrides == case.overrides and job.test.overrides == (*case.overrides, "cycles.seed=1")
+    assert (job.reference.python, job.test.python, job.max_passes, job.alpha) == (None, "/py", case.passes, suite.alpha)
 
 
 def outcome(status, expect="same", verdict=None):
