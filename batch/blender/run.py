@@ -290,20 +290,13 @@ class StopRequest:
         return self._requested or protocol.Interrupts.pending()
 
     def __enter__(self) -> StopRequest:
-        for signum in self.SIGNALS:
-            if signal.getsignal(signum) == signal.SIG_IGN:  # told to ignore it (a Dask worker's render): it does
-                continue
-            try:
-                self._old[signum] = signal.signal(signum, self._note)
-            except ValueError:  # not the main thread: leave signals alone
-                pass
+        # A signal the process was told to ignore (a Dask worker's render) it goes on ignoring.
+        self._old = protocol.take_signals(self.SIGNALS, self._note)
         return self
 
     def _note(self, _signum, _frame) -> None:
         self._requested = True
 
     def __exit__(self, *exc) -> bool:
-        for signum, old in self._old.items():
-            if old is not None:  # None: a handler installed from C (Blender's), which Python can't put back
-                signal.signal(signum, old)
+        protocol.give_back_signals(self._old)
         return False

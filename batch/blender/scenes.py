@@ -95,27 +95,25 @@ def node_tree(block) -> bpy.types.NodeTree:
 
 def _diffuse(name: str, grey: float) -> bpy.types.Material:
     """A Lambertian material; its colour is the input 'Color' of the node 'Diffuse BSDF'."""
-    material = bpy.data.materials.new(name)
-    nodes = node_tree(material).nodes
-    nodes.clear()
-    bsdf = nodes.new("ShaderNodeBsdfDiffuse")
-    bsdf.name = "Diffuse BSDF"
-    bsdf.inputs["Color"].default_value = (grey, grey, grey, 1.0)
-    out = nodes.new("ShaderNodeOutputMaterial")
-    material.node_tree.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
-    return material
+    return _one_shader(name, "ShaderNodeBsdfDiffuse", "Diffuse BSDF", "Color", (grey, grey, grey, 1.0), "BSDF")
 
 
 def _emission(name: str, strength: float) -> bpy.types.Material:
     """A white emitter; its strength is the input 'Strength' of the node 'Emission'."""
+    return _one_shader(name, "ShaderNodeEmission", "Emission", "Strength", strength, "Emission")
+
+
+def _one_shader(name: str, kind: str, node: str, socket: str, value, output: str) -> bpy.types.Material:
+    """A material of one shader node (its `kind`, named `node`, its input `socket` set to `value`) whose `output`
+    is the material's surface: the node's name and input are the override paths the suite and the tests set."""
     material = bpy.data.materials.new(name)
     nodes = node_tree(material).nodes
     nodes.clear()
-    emission = nodes.new("ShaderNodeEmission")
-    emission.name = "Emission"
-    emission.inputs["Strength"].default_value = strength
+    shader = nodes.new(kind)
+    shader.name = node
+    shader.inputs[socket].default_value = value
     out = nodes.new("ShaderNodeOutputMaterial")
-    material.node_tree.links.new(emission.outputs["Emission"], out.inputs["Surface"])
+    material.node_tree.links.new(shader.outputs[output], out.inputs["Surface"])
     return material
 
 

@@ -126,11 +126,7 @@ def load_changes(path: Path | str, taken: tuple[str, ...] = ()) -> tuple[Change,
     """The changes of a file of ``[[change]]`` tables (an audit file's own), every problem of it in one error
     (`taken`: names used already, by the shipped list)."""
     path = Path(path)
-    data = _read_toml(path)
-    problems: list[str] = []
-    unknown = sorted(set(data) - {"audit", "change"})
-    if unknown:
-        problems.append(f"unknown table [{unknown[0]}] (a file of changes has [[change]] tables)")
+    data, problems = _read_tables(path, "a file of changes has [[change]] tables")
     changes = read_changes(data.get("change", []), problems, taken)
     if problems:
         raise BatchError(_problems(path, problems))
@@ -238,6 +234,14 @@ def _read_toml(path: Path) -> dict:
         raise BatchError(f"{path}: no such file") from None
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise BatchError(f"{path}: not readable TOML: {exc}") from None
+
+
+def _read_tables(path: Path, tables: str) -> tuple[dict, list[str]]:
+    """An audit file's or a file of changes' tables, and its first problem where it has a table other than
+    ``[audit]`` and ``[[change]]`` (`tables` says which it has)."""
+    data = _read_toml(path)
+    unknown = sorted(set(data) - {"audit", "change"})
+    return data, [f"unknown table [{unknown[0]}] ({tables})"] if unknown else []
 
 
 def _problems(path: Path, problems: list[str]) -> str:
@@ -515,11 +519,7 @@ def load_audit_file(path: Path | str) -> AuditFile:
     `tile`, `passes` and `seconds` a cell, `alpha`, `tolerance`) and the user's own ``[[change]]`` tables. Every
     problem in one error."""
     path = Path(path)
-    data = _read_toml(path)
-    problems: list[str] = []
-    unknown = sorted(set(data) - {"audit", "change"})
-    if unknown:
-        problems.append(f"unknown table [{unknown[0]}] (an audit file has [audit] and [[change]])")
+    data, problems = _read_tables(path, "an audit file has [audit] and [[change]]")
     head = data.get("audit", {})
     if not isinstance(head, dict):
         head, _ = {}, problems.append("[audit] must be a table")

@@ -48,6 +48,7 @@ Nothing here imports bpy: the renders run in their own processes through the ren
 
 from __future__ import annotations
 
+import dataclasses
 import fnmatch
 import importlib.util
 import json
@@ -119,36 +120,18 @@ class Case:
     command: str | None = None  # renders a pass into an EXR instead of Cycles (batch.jobs.command)
     folder: str | None = None  # the suite file's folder, where a command runs
 
-    def job(
-        self,
-        out: str,
-        seeds,
-        device: str,
-        blender: str | None,
-        extra: tuple[str, ...] = (),
-        test: bool = False,
-        python: str | None = None,
-    ) -> RenderJob:
+    def job(self, out: str, seeds, device: str, blender: str | None, test: bool = False,
+            python: str | None = None) -> RenderJob:  # fmt: skip
         """The render job of one side of this case (`test`: the test side), rendered with bpy, or with `blender`
         (a binary) or `python` (another release's bpy)."""
-        return RenderJob(
-            out=out,
-            seeds=tuple(seeds),
-            spp=(self.test_spp or self.spp) if test else self.spp,
-            tile=self.tile,
-            blend=self.blend,
-            scene=self.scene,
-            blend_scene=self.blend_scene,
-            resolution=self.resolution,
-            device=device,
-            sampling_pattern=(self.test_sampling_pattern or self.sampling_pattern) if test else self.sampling_pattern,
-            overrides=self.overrides + tuple(extra),
-            blender=blender,
-            python=python,
-            checkpoint_every=max(self.passes, 1),
-            command=self.command,
-            command_dir=self.folder if self.command else None,
-        )
+        # The fields of one name: the scene, its overrides, samples, pattern, image and tiles, the command.
+        shared = {f.name: getattr(self, f.name) for f in dataclasses.fields(RenderJob) if hasattr(self, f.name)}
+        if test:  # the test side's own samples and pattern, where the case gives them
+            shared |= {"spp": self.test_spp or self.spp,
+                       "sampling_pattern": self.test_sampling_pattern or self.sampling_pattern}  # fmt: skip
+        made = {"out": out, "seeds": tuple(seeds), "device": device, "blender": blender, "python": python}
+        folder = self.folder if self.command else None
+        return RenderJob(**shared | made, checkpoint_every=max(self.passes, 1), command_dir=folder)
 
 
 @dataclass(frozen=True)
@@ -551,34 +534,25 @@ def case_request(suite: Suite, case: Case, device: str, reference: Path, folder:
     `passes` bounds it under a time budget too: past the reference's passes the two means differ in how often
     they catch a rare bright path, which Welch's t does not forgive when one side has few passes."""
     blender, python = build
-    return CheckRequest(
-        out=str(folder),
-        reference_stats=str(reference),
-        blend=case.blend,
-        scene=case.scene,
-        blend_scene=case.blend_scene,
-        reference_overrides=case.overrides,
-        overrides=case.overrides + tuple(overrides),
-        spp=case.spp,
-        test_spp=case.test_spp,
-        tile=case.tile,
-        resolution=case.resolution,
-        device=device,
-        sampling_pattern=case.sampling_pattern,
-        test_sampling_pattern=case.test_sampling_pattern,
-        test_blender=blender,
-        test_python=python,
-        pass_command=case.command,
-        command_dir=case.folder,
-        max_passes=case.passes,
-        max_seconds=case.seconds,
-        alpha=suite.alpha,
-        tolerance=case.tolerance,
-        equivalence_tile=case.equivalence_tile,
-        pixel_variance=case.pixel_variance,
-        seed_offset=seed_offset,
-        resume=resume,
-    )
+    made = {
+        "out": str(folder),
+        "reference_stats": str(reference),
+        "reference_overrides": case.overrides,
+        "overrides": case.overrides + tuple(overrides),
+        "device": device,
+        "test_blender": blender,
+        "test_python": python,
+        "pass_command": case.command,
+        "command_dir": case.folder,
+        "max_passes": case.passes,
+        "max_seconds": case.seconds,
+        "alpha": suite.alpha,
+        "seed_offset": seed_offset,
+        "resume": resume,
+    }
+    # The fields of one name: the scene, its samples, pattern, image and tiles, the claim and the pixel test.
+    shared = {f.name: getattr(case, f.name) for f in dataclasses.fields(CheckRequest) if hasattr(case, f.name)}
+    return CheckRequest(**shared | made)
 
 
 def reference_problem(case: Case, reference: wc.TileStats, refs: Path) -> str | None:

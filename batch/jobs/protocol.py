@@ -258,6 +258,28 @@ def interrupted(code: int | None) -> bool:
     return code is not None and (code == Exit.INTERRUPTED or -code in signals or code - 128 in signals)
 
 
+def take_signals(signums, handler, keep=(signal.SIG_IGN,)) -> dict:
+    """Handle `signums` with `handler`, but where a signal's handler now is one of `keep` (one the process was told
+    to ignore) and outside the main thread (where Python can't): the handlers replaced, by signal."""
+    replaced = {}
+    for signum in signums:
+        if signal.getsignal(signum) in keep:
+            continue
+        try:
+            replaced[signum] = signal.signal(signum, handler)
+        except ValueError:  # not the main thread: leave signals alone
+            pass
+    return replaced
+
+
+def give_back_signals(replaced: dict) -> None:
+    """Put back the handlers `take_signals` replaced; None (a handler installed from C, such as Blender's, which
+    Python can't put back) stays replaced."""
+    for signum, old in replaced.items():
+        if old is not None:
+            signal.signal(signum, old)
+
+
 class Interrupts:
     """While active, Ctrl-C (SIGINT) and SIGTERM (a job scheduler's or the add-on's cancel) stop this process the
     same way: the handler notes the signal and raises KeyboardInterrupt in the main thread, so a check saves its
@@ -296,13 +318,7 @@ class Interrupts:
     def __enter__(self) -> Interrupts:
         Interrupts._active.append(self)
         self._unraisable, sys.unraisablehook = sys.unraisablehook, self._ignore_interrupt
-        for signum in self.SIGNALS:
-            if signal.getsignal(signum) in (signal.SIG_IGN, None):
-                continue
-            try:
-                self._old[signum] = signal.signal(signum, self._raise)
-            except ValueError:  # not the main thread: leave signals alone
-                pass
+        self._old = take_signals(self.SIGNALS, self._raise, keep=(signal.SIG_IGN, None))
         return self
 
     @classmethod
@@ -336,8 +352,7 @@ class Interrupts:
             self._unraisable(unraisable)
 
     def __exit__(self, *_exc) -> bool:
-        for signum, old in self._old.items():
-            signal.signal(signum, old)
+        give_back_signals(self._old)
         self._old = {}
         if self._unraisable is not None:
             sys.unraisablehook, self._unraisable = self._unraisable, None
