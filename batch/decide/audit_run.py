@@ -20,6 +20,7 @@ they stopped. Nothing here imports bpy.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
 import os
 import shlex
@@ -206,15 +207,13 @@ def cut_short(record: dict | None, floor: int | None) -> bool:
 ROLES = {"first": 0, "confirm": 1, "explain": 2}
 
 
-def cell_job(plan: AuditPlan, cell: Cell, role: str, folder: Path, resume: bool = False,
-             workers: int | None = None, scheduler: str | None = None):  # fmt: skip
+def cell_request(plan: AuditPlan, cell: Cell, role: str, folder: Path) -> CheckRequest:
     """The `check` of one role of a cell (`ROLES`): the change against its default at the audit's level, each
     side's overrides set explicitly; the confirmation with the tile sums alone and the light components, the
     explanation with the biased-by-design settings off on both sides; each on its own block of seeds."""
     spec, change, scene = plan.spec, cell.change, cell.scene
-    base = UNBIASED_OVERRIDES if role == "explain" else ()
-    reference, test = change.sides(base)
-    request = CheckRequest(
+    reference, test = change.sides(UNBIASED_OVERRIDES if role == "explain" else ())
+    return CheckRequest(
         out=str(folder),
         blend=scene.blend,
         scene=scene.scene,
@@ -234,14 +233,17 @@ def cell_job(plan: AuditPlan, cell: Cell, role: str, folder: Path, resume: bool 
         pixel_variance="off" if role == "confirm" else "auto",
         unpaired=change.aa,
         seed_offset=spec.seed_offset + ROLES[role] * spec.max_passes,
-        resume=resume,
-        workers=workers,
-        scheduler=scheduler,
         max_passes=spec.max_passes,
         max_seconds=spec.max_seconds,
         min_passes=spec.floor,
     )
-    return check_job(request)
+
+
+def cell_job(plan: AuditPlan, cell: Cell, role: str, folder: Path, resume: bool = False,
+             workers: int | None = None, scheduler: str | None = None):  # fmt: skip
+    """The check of one role of a cell (`cell_request`), resumed or on a cluster where asked."""
+    request = cell_request(plan, cell, role, folder)
+    return check_job(dataclasses.replace(request, resume=resume, workers=workers, scheduler=scheduler))
 
 
 def check_command(plan: AuditPlan, cell: Cell, role: str, out: Path) -> str:
@@ -249,37 +251,15 @@ def check_command(plan: AuditPlan, cell: Cell, role: str, out: Path) -> str:
     budget) into `out`. The reference side of ``check`` takes no overrides: a scene file must hold the reference
     side's values itself (a built-in scene does), which the line then says. A release's bpy (``--release``) is
     named by the command that prints its Python (``welch-bias bpy VERSION``), not by this machine's path."""
-    spec, change, scene = plan.spec, cell.change, cell.scene
-    reference, test = change.sides(UNBIASED_OVERRIDES if role == "explain" else ())
-    argv = ["welch-bias", "check", *([scene.blend] if scene.blend else ["--scene", scene.scene])]
-    for text in test:
-        argv += ["--set", text]
-    argv += ["--spp", str(change.samples), "--tile", str(spec.tile)]
-    if spec.resolution:
-        argv += ["--resolution", *map(str, spec.resolution)]
-    release = is_release(spec.build)
-    python = PYTHON_OF_RELEASE if release else spec.build.python
-    for flag, value in (("--sampling-pattern", change.pattern), ("--test-sampling-pattern", change.test_pattern),
-                        ("--test-device", change.test_device), ("--python", python),
-                        ("--blender", spec.build.blender)):  # fmt: skip
-        if value:
-            argv += [flag, value]
-    argv += ["--alpha", f"{plan.level:.6g}", "--tolerance", "off" if spec.tolerance is None else
-             f"{100 * spec.tolerance:g}%"]  # fmt: skip
-    argv += ["--max-passes", str(spec.max_passes)]
-    if spec.max_seconds:
-        argv += ["--max-seconds", f"{spec.max_seconds:g}", "--min-passes", str(spec.floor)]
-    argv += ["--seed-offset", str(spec.seed_offset + ROLES[role] * spec.max_passes)]
-    if role == "confirm":
-        argv += ["--pixel-variance", "off", "--lobes", ",".join(LOBES)]
-    if change.aa:
-        argv.append("--unpaired")
-    argv += ["--out", str(out)]
-    line = shlex.join(argv)
+    request = cell_request(plan, cell, role, out)
+    release = is_release(plan.spec.build)
     if release:
-        line = line.replace(PYTHON_OF_RELEASE, f'"$(welch-bias bpy {spec.build.label})"')
-    if scene.blend and reference:
-        line += f"  (with {', '.join(reference)} in the scene file itself)"
+        request = dataclasses.replace(request, python=PYTHON_OF_RELEASE)
+    line = shlex.join(["welch-bias", "check", *request.to_argv()])
+    if release:
+        line = line.replace(PYTHON_OF_RELEASE, f'"$(welch-bias bpy {plan.spec.build.label})"')
+    if cell.scene.blend and request.reference_overrides:
+        line += f"  (with {', '.join(request.reference_overrides)} in the scene file itself)"
     return line
 
 

@@ -14,8 +14,9 @@ from pathlib import Path
 
 from .._siblings import welch_core as wc
 from ..errors import BatchError
+from ..jobs import options
 from ..jobs.job import RenderJob
-from ..jobs.options import TEST_SIDE, default
+from ..jobs.options import OPTIONS, TEST_SIDE, default
 from ..jobs.pairs import PixelPairs
 from ..jobs.samples import BUILTIN, AutoSamples, SceneSamples, auto_samples, side_settings
 from ..jobs.seeds import MAX_PASSES
@@ -159,6 +160,23 @@ class CheckRequest:
     workers: int | None = None
     scheduler: str | None = None
 
+    def to_argv(self) -> list[str]:
+        """``check``'s arguments that ask for this request (`from_args` of them is this request, but for the fields
+        the command line has no option for: a finished reference, the reference's overrides): each field that is
+        not its default, as its declared option writes it; the scene file first, --out last."""
+        fields = sorted(dataclasses.fields(self), key=lambda f: (f.name != "blend", f.name == "out"))
+        argv = []
+        for field in fields:
+            value = getattr(self, field.name)
+            if field.name in _NOT_ARGUMENTS or value == field.default:
+                continue
+            own = field.name.removeprefix("test_")  # the test side's own value of an option (--test-spp)
+            if own != field.name and own in TEST_OPTIONS:
+                argv += options.to_argv(OPTIONS[own], value, "test")
+            else:
+                argv += options.to_argv(OPTIONS[field.name], value)
+        return argv
+
     @classmethod
     def from_args(cls, args) -> CheckRequest:
         """The request of ``check``'s parsed command line (the fields it has no option for keep their defaults:
@@ -168,6 +186,9 @@ class CheckRequest:
 
 #: The request's fields that ``check``'s command line does not give.
 _NOT_ARGUMENTS = ("reference_overrides", "reference_stats")
+
+#: The options whose test side ``check`` takes (``--test-spp``, ``--test-blender``...), by destination.
+TEST_OPTIONS = tuple(dest for dest, o in OPTIONS.items() if "check" in o.uses and "test" in o.sides)
 
 
 def check_job_from_args(args) -> CheckJob:

@@ -1231,18 +1231,22 @@ def argparse_type(option: Option, flag: str | None = None, auto: bool = False) -
     return convert
 
 
-def to_argv(option: Option, value) -> list[str]:
-    """`value` on the command line as `option`'s flag and its text: what its parser reads back to `value`."""
+def to_argv(option: Option, value, side: str = "reference") -> list[str]:
+    """`value` on the command line as `option`'s flag (`side` ``test``: its test side's, ``--test-spp``) and its
+    text: what its parser reads back to `value` (None: ``off`` where the option takes it, else nothing)."""
+    flag = option.flag if side == "reference" else "--test-" + option.flag.removeprefix("--")
     if option.positional:
         return [str(value)]
-    if option.kind == "flag":
-        return [option.flag] if value else []
+    if option.kind == "flag":  # given where it is not the default: a flag that turns something off stores False
+        return [flag] if bool(value) != bool(option.default) else []
+    if value is None:
+        return [flag, "off"] if option.off else []
     if option.many:
-        return [word for item in value for word in (option.flag, str(item))]
+        return [word for item in value for word in (flag, str(item))]
     if option.kind == "resolution":
-        return [option.flag, *map(str, value)]
+        return [flag, *map(str, value)]
     text = {"lobes": ",".join, "seeds": format_seeds}.get(option.kind, option.show)(value)
-    return [option.flag, text]
+    return [flag, text]
 
 
 def add_options(parser, command: str, dests: Iterable[str] | None = None, side: str = "reference"):

@@ -4,14 +4,17 @@ checks of a cell, the statuses and the exit code. The audit rendered for real is
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import shlex
 
 import pytest
 
-from batch.cli.commands import main
+from batch.cli.commands import build_parser, main
 from batch.decide import audit, audit_run
 from batch.decide.audit import AA, AuditSpec, Cell, Change, merged, plan_audit, scenes_of
 from batch.decide.audit_run import CellResult, cell_job, check_command, exit_code, status_of
+from batch.decide.check_job import CheckRequest
 from batch.decide.matrix import Build
 from batch.errors import BatchError, Exit, Undecided
 from batch.jobs import releases
@@ -199,15 +202,23 @@ def test_the_command_that_reproduces_a_confirmation(tmp_path):
     cell = Cell(by_name("blue_noise"), plan.spec.scenes[1])
     line = check_command(plan, cell, "confirm", tmp_path / "again")
     assert line.startswith(
-        "welch-bias check --scene glossy --spp 2 --tile 16 --sampling-pattern TABULATED_SOBOL --test-sampling-pattern "
-        "BLUE_NOISE --alpha 0.000294118 --tolerance 1% --max-passes 40 --max-seconds 20 --min-passes 8 --seed-offset "
-        "40 --pixel-variance off --lobes diffuse,"
+        "welch-bias check --scene glossy --spp 2 --sampling-pattern TABULATED_SOBOL --lobes diffuse,glossy,"
+        "transmission,volume,emission,environment --test-sampling-pattern BLUE_NOISE --max-passes 40 --max-seconds "
+        "20.0 --min-passes 8 --alpha 0.00029411764705882356 --pixel-variance off --seed-offset 40 --out "
     )
+    # the line is the check's request, as the command line reads it back
+    for role, checked in (("confirm", cell), ("explain", Cell(by_name("filter_glossy"), plan.spec.scenes[0]))):
+        request = audit_run.cell_request(plan, checked, role, tmp_path / "again")
+        argv = shlex.split(check_command(plan, checked, role, tmp_path / "again"))[1:]
+        parsed = CheckRequest.from_args(build_parser().parse_args(argv))
+        assert dataclasses.replace(request, reference_overrides=()) == dataclasses.replace(
+            parsed, overrides=tuple(parsed.overrides), lobes=tuple(parsed.lobes)
+        )
     # a release's bpy by the command that prints its Python, not by this machine's path
     python = str(releases.python_of(releases.cache_folder() / "5.2.3"))
     released = plan_audit(spec(max_passes=40, build=Build("5.2.3", python=python)), {})
     line = check_command(released, cell, "first", tmp_path / "again")
-    assert ' --test-sampling-pattern BLUE_NOISE --python "$(welch-bias bpy 5.2.3)" --alpha ' in line
+    assert ' --test-sampling-pattern BLUE_NOISE --python "$(welch-bias bpy 5.2.3)" --max-passes ' in line
     assert python not in line
 
 

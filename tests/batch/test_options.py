@@ -231,3 +231,24 @@ def test_the_pvalue_methods_are_the_statistics_ones():
     import welch_core as wc
 
     assert options.OPTIONS["pvalue_method"].choices == options.PVALUE_METHODS == wc.PVALUE_METHODS
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["--out", "x"],
+        ["a.blend", "--set", "cycles.blur_glossy=1", "--set", "cycles.seed=2", "--test-spp", "4", "--out", "x"],
+        ["--scene", "corner", "--tolerance", "off", "--no-futility", "--unpaired", "--resolution", "64", "32",
+         "--lobes", "all", "--max-seconds", "30", "--min-passes", "4", "--alpha", "0.001", "--out", "x"],
+        ["--command", "r {seed} {out}", "--test-command", "s {seed} {out}", "--command-dir", "d", "--out", "x"],
+        ["a.blend", "--test-blend", "b.blend", "--test-blend-scene", "S", "--test-python", "p", "--workers", "2",
+         "--spp", "auto", "--equivalence-tile", "64", "--pixel-variance", "on", "--resume", "--out", "x"],
+    ],
+)  # fmt: skip
+def test_a_check_request_writes_the_command_line_that_asks_for_it(argv):
+    """`CheckRequest.to_argv` (what an audit prints to reproduce a check) is read back to the same request."""
+    from batch.decide.check_job import CheckRequest
+
+    request = CheckRequest.from_args(parse("check", *argv))
+    assert CheckRequest.from_args(parse("check", *request.to_argv())) == request
+    assert len(request.to_argv()) <= len(argv)  # what is the default is left out
