@@ -33,7 +33,7 @@ from .._siblings import welch_core as wc
 from ..errors import INTERRUPTED_LINE, BatchError, Exit, Undecided
 from ..jobs import job as jobs
 from ..jobs.options import TEST_SIDE, add_options
-from ..jobs.protocol import Interrupts, Probed, verdict_exit
+from ..jobs.protocol import CaseStatus, Interrupts, Probed, verdict_exit
 
 INPUT_ERRORS = (BatchError, wc.WelchInputError, OSError)
 
@@ -598,7 +598,7 @@ def cmd_suite(args) -> int:
         args.python,
     )
     summary = suites.write_outputs(suite, outcomes, out, refs)
-    failed = [o.label for o in outcomes if o.status == "failed"]
+    failed = [o.label for o in outcomes if o.status == CaseStatus.FAILED]
     say(
         "suite: "
         + ", ".join(f"{v} {k}" for k, v in summary["counts"].items() if v)

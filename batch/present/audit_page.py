@@ -14,8 +14,8 @@ from .._siblings import welch_core as wc
 from ..errors import Exit
 from ..jobs.protocol import CaseStatus
 from . import fmt
-from .colours import STATUS_COLOURS
 from .dashboard import STYLE
+from .statuses import STATUS_COLOURS
 
 #: Each status's colour and word, for a cell of a change documented to change only the noise, and of a control.
 _CELL = {

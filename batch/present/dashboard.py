@@ -14,13 +14,11 @@ import numpy as np
 
 from .._siblings import welch_core as wc
 from ..errors import Exit
+from ..jobs.protocol import CaseStatus
 from . import fmt
-from .colours import STATUS_COLOURS
+from .statuses import FIRST, STATUS_COLOURS, STATUSES
 
 THUMBNAIL = 96  # pixels, the longer side
-
-#: The order of the rows: what needs a look first (a stable sort: the suite's order within each).
-FIRST = ("failed", "error", "inconclusive", "underpowered", "passed", "skipped")
 
 #: The pages' one style sheet (the dashboard, the matrix's and the audit's pages).
 STYLE = """
@@ -44,12 +42,15 @@ img{width:96px;height:96px;object-fit:contain;image-rendering:pixelated;backgrou
 def write_dashboard(path: Path, summary: dict, outcomes, references: list[Path]) -> None:
     """Write the dashboard of `outcomes` (``batch.decide.suite.CaseResult``) with `summary` (``summary.json``'s
     content) and each case's reference statistics file."""
+    # What needs a look first (`FIRST`; a stable sort: the suite's order within each status).
     rows = sorted(zip(outcomes, summary["cases"], references, strict=True), key=lambda row: FIRST.index(row[0].status))
     rows = "".join(_row(o, record, ref) for o, record, ref in rows)
     counts = "".join(
-        f'<span style="color:{STATUS_COLOURS[k]}">{v} {k}</span>' for k, v in summary["counts"].items() if v
+        f'<span style="color:{STATUS_COLOURS[k]}" title="{STATUSES[k].meaning}">{v} {k}</span>'
+        for k, v in summary["counts"].items()
+        if v
     )
-    nothing_ran = all(o.status == "skipped" for o in outcomes)
+    nothing_ran = all(o.status == CaseStatus.SKIPPED for o in outcomes)
     verdict = {Exit.OK: "every case passed", Exit.BIASED: "a case failed", Exit.USAGE: "nothing ran: every case was "
                "skipped" if nothing_ran else "a case could not run", Exit.INCONCLUSIVE: "a case is inconclusive or "
                "underpowered"}  # fmt: skip
@@ -100,7 +101,8 @@ def _row(outcome, record: dict, reference: Path) -> str:
     return (
         f'<tr class="case" data-status="{outcome.status}"><td><b>{html.escape(outcome.case.name)}</b>{why}</td>'
         f"<td>{html.escape(outcome.device)}</td>"
-        f'<td class="status" style="color:{colour}">{outcome.status}</td>{cells}'
+        f'<td class="status" style="color:{colour}" title="{STATUSES[outcome.status].meaning}">{outcome.status}</td>'
+        f"{cells}"
         f'<td>{html.escape(outcome.verdict or "")}<div class="muted">{html.escape(outcome.message)}</div></td>'
         f'<td>{difference}</td><td class="num">{outcome.passes or ""}</td>'
         f'<td class="num">{outcome.seconds:.1f}</td><td>{report}</td></tr>'

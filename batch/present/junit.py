@@ -5,7 +5,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from ..jobs.protocol import FAILING, CaseStatus
+from ..jobs.protocol import CaseStatus
+from .statuses import STATUSES
 
 #: Characters XML 1.0 does not allow (C0 controls but tab, newline and carriage return): a renderer's message
 #: may hold them, and one of them makes the whole file unreadable to a CI server.
@@ -30,20 +31,21 @@ def junit_xml(suite: str, outcomes) -> bytes:
         "testsuite",
         name=xml_text(suite),
         tests=str(len(outcomes)),
-        failures=str(sum(counts[s] for s in FAILING)),
-        errors=str(counts["error"]),
-        skipped=str(counts["skipped"]),
+        failures=str(sum(n for s, n in counts.items() if STATUSES[s].junit == "failure")),
+        errors=str(sum(n for s, n in counts.items() if STATUSES[s].junit == "error")),
+        skipped=str(sum(n for s, n in counts.items() if STATUSES[s].junit == "skipped")),
         time=f"{sum(o.seconds for o in outcomes):.3f}",
     )
     for o in outcomes:
         case = ET.SubElement(group, "testcase", classname=xml_text(f"{suite}.{o.device}"), name=xml_text(o.case.name),
                              time=f"{o.seconds:.3f}")  # fmt: skip
         message = xml_text(o.message)
-        if o.status in FAILING:
+        element = STATUSES[o.status].junit
+        if element == "failure":
             ET.SubElement(case, "failure", message=f"{o.verdict}: {message}", type=o.status)
-        elif o.status == CaseStatus.ERROR:
+        elif element == "error":
             ET.SubElement(case, "error", message=message, type="error")
-        elif o.status == CaseStatus.SKIPPED:
+        elif element == "skipped":
             ET.SubElement(case, "skipped", message=message)
         out = ET.SubElement(case, "system-out")
         out.text = message + (xml_text(f"\nreport: {Path(o.folder) / 'report.html'}") if o.folder else "")

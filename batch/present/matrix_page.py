@@ -10,8 +10,8 @@ from pathlib import Path
 
 from .._siblings import welch_core as wc
 from . import fmt
-from .colours import verdict_colour
 from .dashboard import STYLE, pvalue_thumbnail
+from .statuses import verdict_colour
 
 
 def _cell(pair, page: Path) -> str:

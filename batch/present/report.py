@@ -22,7 +22,7 @@ import numpy as np
 
 from .._siblings import welch_core as wc
 from . import fmt
-from .colours import verdict_colour
+from .statuses import verdict_colour
 from .summary import design_line, untested_lines
 
 #: The longest side of the pictures in the page (what statistics files store as their preview); tiles are drawn

@@ -205,13 +205,16 @@ def test_every_tile_test_has_its_words():
         assert words.deterministic(3, kind.value) == words.deterministic(3, kind)  # report files hold the value
 
 
-def test_every_status_has_one_colour_on_every_page():
-    """A status's colour is written once (`colours.STATUS_COLOURS`); a verdict takes its status's, as report.html's
-    did before the table (biased red, inconclusive amber, the others green)."""
-    from batch.jobs.protocol import CaseStatus
-    from batch.present import colours
+def test_every_status_is_shown_from_one_table():
+    """A status's colour, JUnit element and meaning are written once (`statuses.STATUSES`); a verdict takes its
+    status's colour, as report.html's did before the table (biased red, inconclusive amber, the others green); the
+    statuses that count against a suite are JUnit's failures."""
+    from batch.jobs.protocol import FAILING, CaseStatus
+    from batch.present import statuses
 
-    assert set(colours.STATUS_COLOURS) == set(CaseStatus)
+    assert set(statuses.STATUSES) == set(statuses.STATUS_COLOURS) == set(statuses.FIRST) == set(CaseStatus)
+    assert {s for s, words in statuses.STATUSES.items() if words.junit == "failure"} == set(FAILING)
+    assert statuses.FIRST[0] == CaseStatus.FAILED and statuses.FIRST[-1] == CaseStatus.SKIPPED
     expected = {"biased": "#b00020", "inconclusive": "#a06000", "equivalent": "#1b7f3b", "no_evidence": "#1b7f3b"}
-    assert {verdict: colours.verdict_colour(verdict) for verdict in expected} == expected
-    assert {v.label: colours.verdict_colour(v) for v in wc.Verdict} == expected
+    assert {verdict: statuses.verdict_colour(verdict) for verdict in expected} == expected
+    assert {v.label: statuses.verdict_colour(v) for v in wc.Verdict} == expected
