@@ -2,8 +2,11 @@
 its dependencies show in one place: relative inside the extension (this package is
 ``bl_ext.<repository>.<id>.blender_addon``, and the add-on Blender knows is its parent), top-level from the
 repository, where pytest imports this package on its own. Only light modules are imported at registration (no
-bpy rendering code, no scipy): `presenting` imports what makes a result, when one is made.
+bpy rendering code, no scipy): `check` and `pipeline` are imported when first used.
 """
+
+import importlib
+from typing import TYPE_CHECKING
 
 try:
     from .. import welch_core
@@ -20,28 +23,26 @@ except ImportError:  # top-level from the repository: there is no parent package
 ADDON_MODULE = __package__.rpartition(".")[0] or __package__
 
 
-def presenting():
-    """A comparison's way to people (batch.present.pipeline: the assessment, its summary), imported when a
-    result is made."""
-    try:
-        from ..batch.present import pipeline
-    except ImportError:
-        from batch.present import pipeline
-    return pipeline
+if TYPE_CHECKING:  # what an editor's go-to-definition follows; at run time `__getattr__` imports them
+    from batch.decide import check
+    from batch.present import pipeline
+
+#: The heavy modules, imported when first used (`__getattr__`): the check engine (batch.decide.check) when a run
+#: starts, a comparison's way to people (batch.present.pipeline: the assessment, its summary) when a result is made.
+_LATER = {"check": "batch.decide.check", "pipeline": "batch.present.pipeline"}
 
 
-def checking():
-    """The check engine (batch.decide.check), imported when a run starts."""
-    try:
-        from ..batch.decide import check
-    except ImportError:
-        from batch.decide import check
-    return check
+def __getattr__(name: str):
+    """A module of `_LATER`, imported on first use: ``_siblings.check``."""
+    if name not in _LATER:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    root = __package__.rpartition(".")[0]  # the extension's root package; none in the repository
+    return importlib.import_module(f"{root}.{_LATER[name]}" if root else _LATER[name])
 
 
 __all__ = [
     "ADDON_MODULE",
-    "checking",
+    "check",
     "errors",
     "fmt",
     "job",
@@ -49,7 +50,7 @@ __all__ = [
     "lobes",
     "options",
     "overrides",
-    "presenting",
+    "pipeline",
     "protocol",
     "rna",
     "samples",

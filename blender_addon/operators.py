@@ -11,8 +11,8 @@ import bpy
 from bpy.app.handlers import persistent
 from bpy.props import BoolProperty, IntProperty, StringProperty
 
-from . import checks, overlay, results, runner, session
-from ._siblings import checking, errors, fmt, presenting, welch_core
+from . import _siblings, checks, overlay, results, runner, session
+from ._siblings import errors, fmt, welch_core
 from .state import current
 
 TIMER_SECONDS = 0.25
@@ -20,7 +20,7 @@ REDRAW_AREAS = {"PROPERTIES", "IMAGE_EDITOR"}
 
 
 def compare_and_show(context, reference_path: str, test_path: str, alpha: float) -> dict:
-    assessment, reference, test = presenting().assess_files(reference_path, test_path, alpha)
+    assessment, reference, test = _siblings.pipeline.assess_files(reference_path, test_path, alpha)
     sources = {"reference": reference_path, "test": test_path}
     summary = results.store(assessment, reference, test, sources)
     show(context)
@@ -38,7 +38,7 @@ def conclude_check(context, run: runner.CheckRun) -> dict:
     """The finished check's report (written into its folder, as ``python -m batch check`` writes it) and its
     result shown: the verdict and numbers of its final look, the map of its final passes."""
     look, reference, test = run.result
-    check = checking()
+    check = _siblings.check
     report, assessment = check.report_check(run.check, look, reference, test)
     sources = {"reference": run.job.reference.out, "test": run.job.test.out}
     summary = results.store(assessment, reference, test, sources, report=report)
@@ -54,10 +54,12 @@ def show_look(context, run: runner.CheckRun) -> None:
     if taken is None:
         return
     look, reference, test = taken
-    check = checking()
+    check = _siblings.check
     sources = {"reference": run.job.reference.out, "test": run.job.test.out}
     comparison = check.look_comparison(run.job, reference, test, run.check.pixel_pairs, run.check.plan.pixel_variance)
-    assessment = presenting().assess(comparison, reference, test, names=tuple(sources.values()), outcome=look.outcome)
+    assessment = _siblings.pipeline.assess(
+        comparison, reference, test, names=tuple(sources.values()), outcome=look.outcome
+    )
     results.store(assessment, reference, test, sources)
     show(context)
 

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import bpy
 
-from . import overlay
-from ._siblings import presenting, welch_core
+from . import _siblings, overlay
+from ._siblings import welch_core
 from .overlay import CHANNEL_INDEX, CORE_MAP_MODES, IMAGE_TAG
 from .state import current
 
@@ -56,7 +56,7 @@ def summarize(assessment, sources: dict[str, str], report=None) -> dict:
         title, icon = f"No Verdict Yet ({decided.n_test} Passes)", "TIME"
     summary.update(
         verdict_title=title,
-        design=presenting().summaries.design_line(summary),
+        design=_siblings.pipeline.summaries.design_line(summary),
         verdict_icon=icon,
         histogram=bars,
         histogram_expected=expected,

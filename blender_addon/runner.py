@@ -16,7 +16,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ._siblings import checking, errors, fmt, protocol, welch_core
+from . import _siblings
+from ._siblings import errors, fmt, protocol, welch_core
 
 RUNNING = "RUNNING"
 FINISHED = "FINISHED"
@@ -63,8 +64,7 @@ class CheckRun:
     live = False  # what the check asks of its progress: no terminal lines here
 
     def __post_init__(self):
-        check_module = checking()
-        self.check = check_module.Check(self.job, self, side_progress=self._side, env=self.env)
+        self.check = _siblings.check.Check(self.job, self, side_progress=self._side, env=self.env)
         self._steps = self.check.steps()
 
     def _side(self, name: str) -> SideProgress:

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import bpy
 
-from . import checks, preferences, runner
-from ._siblings import ADDON_MODULE, checking, lobes, options, samples
+from . import _siblings, checks, preferences, runner
+from ._siblings import ADDON_MODULE, lobes, options, samples
 from .state import RunFolder, current
 
 
@@ -93,7 +93,7 @@ def check_request(settings, scene, blend: str, folder: Path, resume: bool, blend
     reference, test = checks.sides(settings, scene)
     other = bpy.path.abspath(settings.test_build) if settings.test_build else ""
     python = other and Path(other).name.startswith("python")  # a Python with another release's bpy, or a binary
-    return checking().CheckRequest(
+    return _siblings.check.CheckRequest(
         out=str(folder),
         blend=blend,
         blend_scene=reference.name,
@@ -143,7 +143,7 @@ def start(context, settings, resume: bool) -> runner.CheckRun:
         raise OSError(f"the stopped run's copy of the scene is gone ({blend}): start a new run")
     request = check_request(settings, context.scene, str(blend), folder, resume, blender_binary(context))
     # --spp auto reads the scenes: this file's own for a new run (its copy is this file), the copy on a resume
-    job = checking().check_job(request, probe=None if resume else scene_samples)
+    job = _siblings.check.check_job(request, probe=None if resume else scene_samples)
     # Render processes started with this Python (the bpy module) find the extension's wheels.
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([*extension_wheel_paths(), *filter(None, [env.get("PYTHONPATH")])])

@@ -89,3 +89,17 @@ def test_every_lazy_name_of_welch_core_is_imported_for_editors_where_it_is_defin
     assert shown == welch_core._EXPORTS
     for name, module in shown.items():
         assert name in vars(importlib.import_module(f"welch_core.{module}")), (name, module)
+
+
+def test_the_add_ons_later_modules_are_imported_for_editors_and_on_first_use():
+    """The add-on imports the check engine and the presenters' pipeline on first use (`_siblings._LATER`, not at
+    registration); its imports under TYPE_CHECKING let an editor's go-to-definition find them: the same modules."""
+    from blender_addon import _siblings
+
+    tree = ast.parse((ROOT / "blender_addon" / "_siblings.py").read_text())
+    (block,) = [n for n in tree.body if isinstance(n, ast.If) and ast.unparse(n.test) == "TYPE_CHECKING"]
+    shown = {a.name: f"{node.module}.{a.name}" for node in block.body for a in node.names}
+    assert shown == _siblings._LATER
+    assert _siblings.check.__name__ == "batch.decide.check" and hasattr(_siblings.pipeline, "assess")
+    with pytest.raises(AttributeError, match="has no attribute 'render'"):
+        _siblings.render  # noqa: B018
