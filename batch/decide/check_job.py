@@ -210,11 +210,8 @@ def _check_claim_tile(claim: int | None, tile: int, resolution) -> None:
         raise BatchError(f"--equivalence-tile {claim} is larger than the image ({resolution[0]}x{resolution[1]})")
 
 
-def check_job(request: CheckRequest, probe=None) -> CheckJob:
-    """The check `request` describes, refused in one line where it can't work, before anything renders. `probe`
-    reads what scene files ask of the passes for ``--spp auto`` (default `batch.jobs.side.probe_scenes`: a process
-    of each side's build opens its file; the add-on reads its own scenes)."""
-    args = request
+def _refuse(args: CheckRequest) -> None:
+    """What can't work, refused in one line before anything renders."""
     if args.blend is not None and args.scene is not None:
         raise BatchError(f"give a .blend file or a built-in scene, not both ({args.blend}, {args.scene!r})")
     if args.test_pass_command and not args.pass_command:
@@ -224,19 +221,27 @@ def check_job(request: CheckRequest, probe=None) -> CheckJob:
     for option, path in (("SCENE.blend", args.blend), ("--test-blend", args.test_blend)):
         if path is not None and not Path(path).is_file():
             raise BatchError(f"{option} {path}: no such file")
-    max_passes = None if args.max_seconds is not None else (args.max_passes or DEFAULT_MAX_PASSES)
     if args.min_passes is not None and args.max_seconds is None:
         raise BatchError("--min-passes is the floor of a time budget: give --max-seconds too (without it every pass "
                          "of --max-passes renders)")  # fmt: skip
     if args.min_passes is not None and args.max_passes is not None and args.min_passes > args.max_passes:
         raise BatchError(f"--min-passes {args.min_passes} is more than --max-passes {args.max_passes}")
     _check_claim_tile(args.equivalence_tile, args.tile, args.resolution)
-    # A time budget renders at most --max-passes where given too (whichever ends first): its pass budget, fixed from
-    # the speed of the first chunk, is at most the seeds a side has.
-    count = args.max_passes or max_passes or MAX_SEEDS_FOR_SECONDS
     if (args.blender and args.python) or (args.test_blender and args.test_python):
         raise BatchError("give a side's build as a Blender binary or as a Python with bpy, not both (--blender or "
                          "--python; --test-blender or --test-python)")  # fmt: skip
+
+
+def check_job(request: CheckRequest, probe=None) -> CheckJob:
+    """The check `request` describes, refused in one line where it can't work, before anything renders. `probe`
+    reads what scene files ask of the passes for ``--spp auto`` (default `batch.jobs.side.probe_scenes`: a process
+    of each side's build opens its file; the add-on reads its own scenes)."""
+    args = request
+    _refuse(args)
+    max_passes = None if args.max_seconds is not None else (args.max_passes or DEFAULT_MAX_PASSES)
+    # A time budget renders at most --max-passes where given too (whichever ends first): its pass budget, fixed from
+    # the speed of the first chunk, is at most the seeds a side has.
+    count = args.max_passes or max_passes or MAX_SEEDS_FOR_SECONDS
     # The test side's build: its own, else the reference's (a binary given to one side is not the other's Python).
     test_blender = args.test_blender or (None if args.test_python else args.blender)
     test_python = args.test_python or (None if args.test_blender else args.python)
