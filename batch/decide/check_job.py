@@ -67,18 +67,14 @@ class CheckJob:
     def plan(self, max_passes: int, early_share: float | None = None, started: dict | None = None) -> wc.SequentialPlan:
         """The design for `max_passes`; a resumed check keeps the early share it was started with (None: the
         default), and one `started` (its stored plan) before the pixel-variance test existed goes on without it."""
-        early = {} if early_share is None else {"early_share": early_share}
-        pixels = "off" if started is not None and "pixel_variance" not in started else self.pixel_variance
-        return wc.SequentialPlan(
-            max_passes=max_passes,
-            alpha=self.alpha,
-            tolerance=self.tolerance,
-            equivalence_tile=self.equivalence_tile,
-            futility=self.futility,
-            futility_loss=self.futility_loss,
-            pixel_variance=pixels,
-            **early,
-        )
+        # The design's fields of one name: alpha, the tolerance, the claim, the futility stop, the pixel test.
+        design = {f.name: getattr(self, f.name) for f in dataclasses.fields(wc.SequentialPlan) if hasattr(self, f.name)}
+        design["max_passes"] = max_passes
+        if early_share is not None:
+            design["early_share"] = early_share
+        if started is not None and "pixel_variance" not in started:
+            design["pixel_variance"] = "off"
+        return wc.SequentialPlan(**design)
 
     @property
     def paired(self) -> bool:
