@@ -156,9 +156,13 @@ class PixelMoments:
         mean, m2 = np.asarray(mean, dtype=np.float64), np.asarray(m2, dtype=np.float64)
         if mean.ndim != 3 or mean.shape != m2.shape:
             raise WelchInputError(f"pixel moments must be two H×W×C arrays, got {mean.shape} and {m2.shape}")
-        _check_values(names[0], mean, "finite", np.isfinite(mean))
-        with np.errstate(invalid="ignore"):
-            _check_values(names[1], m2, "finite and >= 0", np.isfinite(m2) & (m2 >= 0))
+        # A finite sum has finite terms, and a NaN makes the minimum NaN: one pass over each array where all is
+        # well (at 1920x1080 a file's check took 12 ms as masks), the masks only to name what is not.
+        with np.errstate(invalid="ignore", over="ignore"):
+            if not np.isfinite(mean.sum()):
+                _check_values(names[0], mean, "finite", np.isfinite(mean))
+            if mean.size and not (np.isfinite(m2.sum()) and m2.min() >= 0):
+                _check_values(names[1], m2, "finite and >= 0", np.isfinite(m2) & (m2 >= 0))
         out = cls(*mean.shape)
         out.n, out.mean, out.m2 = int(n), mean, m2
         return out
@@ -344,15 +348,20 @@ def _tile_totals(values, tile: int, grid: tuple[int, int], covered: tuple[int, i
     out = np.zeros((grid[0], grid[1], arrays[0].shape[2]))
     rows, cols = min(covered[0], grid[0] * tile), min(covered[1], grid[1] * tile)
     full = min(cols // tile, grid[1])  # complete tiles across; a partial one after them where the columns go on
-    # A row of tiles at a time: its rows summed first with a contiguous inner axis, then its columns (4x faster
-    # than one sum over both; no padded copy of the image).
-    for row in range(-(-rows // tile)):
-        bands = [a[row * tile : min((row + 1) * tile, rows), :cols] for a in arrays]
-        band = (bands[0] if of is None else of(*bands)).sum(axis=0, dtype=np.float64)
-        if full:
-            out[row, :full] = band[: full * tile].reshape(full, tile, -1).sum(axis=1)
-        if cols > full * tile:
-            out[row, full] = band[full * tile :].sum(axis=0)
+
+    def tile_rows(chunk: slice) -> None:
+        # A row of tiles at a time: its rows summed first with a contiguous inner axis, then its columns (4x faster
+        # than one sum over both; no padded copy of the image).
+        for row in range(chunk.start, chunk.stop):
+            bands = [a[row * tile : min((row + 1) * tile, rows), :cols] for a in arrays]
+            band = (bands[0] if of is None else of(*bands)).sum(axis=0, dtype=np.float64)
+            if full:
+                out[row, :full] = band[: full * tile].reshape(full, tile, -1).sum(axis=1)
+            if cols > full * tile:
+                out[row, full] = band[full * tile :].sum(axis=0)
+
+    # The rows of tiles in one chunk a core; each tile's sum is the same whichever chunk it is in.
+    parallel.by_rows(tile_rows, -(-rows // tile), 1, rows * cols * arrays[0].shape[2])
     return out
 
 

@@ -6,6 +6,7 @@ summarises, reports or decides a comparison itself.
 
 from __future__ import annotations
 
+import functools
 import os
 from dataclasses import dataclass
 from typing import Any
@@ -75,10 +76,18 @@ def present(
     return write(out_dir, assess(comparison, ref, test, **assessing), ref, test, previews, full_maps)
 
 
-def _load(ref_path: str, test_path: str, pixels: bool, moments: bool = True):
-    """Both statistics files (their pixel sums and pixel moments where asked for) and both files' layers."""
-    ref, test = (wc.load_stats(path, pixels=pixels, moments=moments) for path in (ref_path, test_path))
-    return ref, test, (wc.load_layers(ref_path, pixels=False), wc.load_layers(test_path, pixels=False))
+def _load(ref_path: str, test_path: str, pixels: bool, moments: bool = True, previews: bool = False):
+    """Both statistics files (their pixel sums and pixel moments where asked for), both files' layers and, where
+    asked for, their previews; the two files read at once (reading and checking arrays releases the GIL)."""
+
+    def read(path: str):
+        stats = wc.load_stats(path, pixels=pixels, moments=moments)
+        return stats, wc.load_layers(path, pixels=False), wc.load_preview(path) if previews else None
+
+    (ref, ref_layers, ref_preview), (test, test_layers, test_preview) = wc.parallel.at_once(
+        functools.partial(read, ref_path), functools.partial(read, test_path)
+    )
+    return ref, test, (ref_layers, test_layers), (ref_preview, test_preview) if previews else None
 
 
 def compare_files(ref_path: str, test_path: str, out_dir: str, *, alpha: float = default("alpha", "compare"),
@@ -89,8 +98,7 @@ def compare_files(ref_path: str, test_path: str, out_dir: str, *, alpha: float =
     """Load two statistics files, compare them and their layers, and report into `out_dir` (the `compare`
     command). The pixel sums are read only where full-resolution maps are asked for; the page needs the stored
     previews alone."""
-    ref, test, layers = _load(ref_path, test_path, full_maps, moments=pixel_variance != "off")
-    previews = None if full_maps else (wc.load_preview(ref_path), wc.load_preview(test_path))
+    ref, test, layers, previews = _load(ref_path, test_path, full_maps, pixel_variance != "off", not full_maps)
     comparison = wc.compare(ref, test, alpha, kind, pvalue_method, tile, tolerance, equivalence_tile, pixel_variance)
     return present(out_dir, comparison, ref, test, layers=layers, previews=previews, full_maps=full_maps)
 
@@ -99,7 +107,7 @@ def assess_files(ref_path: str, test_path: str, alpha: float) -> tuple[Assessmen
     """Load two statistics files with their pixel sums (a map over the mean render) and assess them and their
     layers as `compare` does, the sides named by their paths, writing nothing (the Blender add-on's statistics
     files)."""
-    ref, test, layers = _load(ref_path, test_path, True)
+    ref, test, layers, _ = _load(ref_path, test_path, True)
     comparison = wc.compare(ref, test, alpha, pixel_variance=default("pixel_variance", "check"))
     return assess(comparison, ref, test, names=(ref_path, test_path), layers=layers), ref, test
 
