@@ -587,3 +587,18 @@ def test_at_three_passes_a_side_the_rendered_caustic_is_calibrated():
         assert c.pixel_use.used
         found += c.verdict == wc.Verdict.BIASED
     assert found <= 15, found
+
+
+def test_moments_whose_sum_overflows_are_finite_still():
+    """The moments' check sums an array first (one pass where all is well): finite values whose sum overflows
+    are finite still, and a NaN or a negative M2 beside them is named."""
+    big = np.full((2, 3, 3), 1e308)
+    assert wc.PixelMoments.of(big, big, 4).n == 4
+    big[1, 2, 0] = np.nan
+    with pytest.raises(wc.WelchInputError, match=r"`mean` must be finite, got nan \(pixel x 2, y 1, channel 0\)"):
+        wc.PixelMoments.of(big, np.zeros_like(big), 4)
+    m2 = np.zeros((2, 3, 3))
+    m2[0, 1, 2] = -1e-300
+    named = r"`m2` must be finite and >= 0, got -1e-300 \(pixel x 1, y 0, channel 2\)"
+    with pytest.raises(wc.WelchInputError, match=named):
+        wc.PixelMoments.of(np.zeros_like(m2), m2, 4)
