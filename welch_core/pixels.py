@@ -291,10 +291,7 @@ class PixelMoments:
                 return m2 / n + mean**2
             return m2 / (n - 1) if n > 1 else np.full(m2.shape, np.nan)
 
-        both = (self.m2, self.mean)
-        v = _tile_totals(both, tile, grid, covered, s2)
-        q = _tile_totals(both, tile, grid, covered, lambda m2, mean: s2(m2, mean) ** 2)
-        self._memo[key] = v, q
+        self._memo[key] = _tile_totals((self.m2, self.mean), tile, grid, covered, s2, also=np.square)  # V, Q
         return self._memo[key]
 
     def conflict(self, tile: int, grid: tuple[int, int], covered: tuple[int, int], sums: np.ndarray):
@@ -306,11 +303,9 @@ class PixelMoments:
         if key in self._conflicts:
             return self._conflicts[key]
         with np.errstate(invalid="ignore", over="ignore"):
-            total, spread = (
-                _tile_totals(self.mean, tile, grid, covered),
-                _tile_totals(self.m2, tile, grid, covered, np.sqrt),
-            )
-            scale = _tile_totals(self.mean, tile, grid, covered, np.abs) + spread
+            total, size = _tile_totals(self.mean, tile, grid, covered, also=np.abs)
+            spread = _tile_totals(self.m2, tile, grid, covered, np.sqrt)
+            scale = size + spread
             n = len(sums)
             rounding = tile * np.finfo(np.float32).eps + (n + tile * tile) * np.finfo(np.float64).eps
             slack = ROUNDING * rounding * np.sqrt(n + 1.0) * scale
@@ -339,13 +334,15 @@ def _check_values(name: str, values: np.ndarray, allowed: str, good: np.ndarray)
     raise WelchInputError(f"{name} must be {allowed}, got {float(values[y, x, c])!r} ({where})")
 
 
-def _tile_totals(values, tile: int, grid: tuple[int, int], covered: tuple[int, int], of=None) -> np.ndarray:
+def _tile_totals(values, tile: int, grid: tuple[int, int], covered: tuple[int, int], of=None, also=None):
     """Sums of `values` (H×W×C), or of `of(values)` (elementwise: np.sqrt; `values` may then be a tuple of such
     arrays, its arguments), over the `covered` pixels of each tile of a `grid` of `tile`-pixel tiles (the right and
-    bottom tiles partial where the tile does not divide them), in float64. `of` is applied a row of tiles at a
-    time: no image-sized array is made (a new one's first write is slow where the kernel compacts memory for it)."""
+    bottom tiles partial where the tile does not divide them), in float64; with `also` (elementwise: np.square),
+    the sums of `also` of the same values too, from the same pass over the pixels (a pair). `of` is applied a row of
+    tiles at a time: no image-sized array is made (a new one's first write is slow where the kernel compacts memory
+    for it)."""
     arrays = values if isinstance(values, tuple) else (values,)
-    out = np.zeros((grid[0], grid[1], arrays[0].shape[2]))
+    outs = [np.zeros((grid[0], grid[1], arrays[0].shape[2])) for _ in range(1 if also is None else 2)]
     rows, cols = min(covered[0], grid[0] * tile), min(covered[1], grid[1] * tile)
     full = min(cols // tile, grid[1])  # complete tiles across; a partial one after them where the columns go on
 
@@ -354,15 +351,17 @@ def _tile_totals(values, tile: int, grid: tuple[int, int], covered: tuple[int, i
         # than one sum over both; no padded copy of the image).
         for row in range(chunk.start, chunk.stop):
             bands = [a[row * tile : min((row + 1) * tile, rows), :cols] for a in arrays]
-            band = (bands[0] if of is None else of(*bands)).sum(axis=0, dtype=np.float64)
-            if full:
-                out[row, :full] = band[: full * tile].reshape(full, tile, -1).sum(axis=1)
-            if cols > full * tile:
-                out[row, full] = band[full * tile :].sum(axis=0)
+            band = bands[0] if of is None else of(*bands)
+            for out, summed in zip(outs, (band, also(band)) if also is not None else (band,), strict=True):
+                summed = summed.sum(axis=0, dtype=np.float64)
+                if full:
+                    out[row, :full] = summed[: full * tile].reshape(full, tile, -1).sum(axis=1)
+                if cols > full * tile:
+                    out[row, full] = summed[full * tile :].sum(axis=0)
 
     # The rows of tiles in one chunk a core; each tile's sum is the same whichever chunk it is in.
     parallel.by_rows(tile_rows, -(-rows // tile), 1, rows * cols * arrays[0].shape[2])
-    return out
+    return outs[0] if also is None else tuple(outs)
 
 
 def _block_sums(values: np.ndarray, factor: int, grid: tuple[int, int]) -> np.ndarray:
