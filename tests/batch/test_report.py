@@ -134,3 +134,16 @@ def test_compare_imports_no_plotting_library_and_no_scipy_stats(tmp_path):
 def test_png_refuses_what_it_cannot_write(shape):
     with pytest.raises(wc.WelchInputError, match="`image` must be a non-empty H×W×3 or H×W×4 uint8 array"):
         wc.png.png_bytes(np.zeros(shape, np.float32 if shape[0] == 1 else np.uint8))
+
+
+def test_the_pages_json_carries_the_pictures_as_they_are():
+    """`script_json` adds the pictures' data URLs without encoding them again: the JSON reads back as the same data
+    with them, escaped as ever elsewhere; a picture that is not base64 is refused."""
+    data = {"summary": {"scene": "</script><!--&"}, "tiles": [1.0, 2.5], "display": None}
+    pictures = {"reference": "data:image/png;base64,iVBORw0KGgo+/=", "test": "data:image/png;base64,AAAA"}
+    text = report.script_json(data, pictures)
+    assert json.loads(text) == data | {"pictures": pictures}
+    assert "<" not in text and ">" not in text and "&" not in text
+    assert json.loads(report.script_json({}, {})) == {"pictures": {}}
+    with pytest.raises(ValueError, match="a picture must be a data URL in base64"):
+        report.script_json(data, {"test": 'data:image/png;base64,"</script>'})
