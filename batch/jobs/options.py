@@ -295,6 +295,13 @@ _BOTH = ("reference", "test")
 #: The commands that render on a Dask cluster where asked (--workers, --scheduler).
 _CLUSTERED = ("render", "check", "suite run", "audit")
 
+#: The help of --pixel-variance, before what each place says of paired runs.
+_PIXEL_HELP = (
+    "test a tile by its pixels' variances where they are independent, far fewer passes at small counts: auto where "
+    "both runs' records prove it (Cycles passes this tool rendered, a sampling pattern measured independent, "
+    "scrambling distance 1), on to vouch for another renderer, off for the tile test everywhere"
+)
+
 #: The help of matrix's and bisect's --tolerance.
 _MATRIX_TOLERANCE = "also say `equivalent` where every finest tile is within it (default: off)"
 
@@ -690,13 +697,17 @@ OPTIONS = {
             "--pixel-variance",
             "pixel_variance",
             "choice",
-            "test a tile by its pixels' variances where they are independent, far fewer passes at small counts: "
-            "auto where both runs' records prove it (Cycles passes this tool rendered, a sampling pattern measured "
-            "independent, scrambling distance 1), on to vouch for another renderer, off for the tile test "
-            "everywhere; unpaired runs only",
+            _PIXEL_HELP + "; unpaired runs only",
             default="auto",
             choices=PIXEL_MODES,
-            uses=dict.fromkeys(("check", "compare", "case"), _USE),
+            uses={
+                "check": Use(
+                    help=_PIXEL_HELP + "; paired runs by each pixel's difference over the seeds (each side's "
+                    "passes kept as images in --out; not with --workers or --scheduler)"
+                ),
+                "compare": Use(help=_PIXEL_HELP + "; unpaired runs only (a paired check keeps what it needs)"),
+                "case": _USE,
+            },
         ),
         Option(
             "seed_offset",
