@@ -13,6 +13,8 @@ import numpy.typing as npt
 from .errors import WelchInputError
 
 __all__ = [
+    "DIFFERENCE_PALETTE",
+    "DIFFERENCE_STEPS",
     "MAP_MODES",
     "colorize",
     "difference_picture",
@@ -88,24 +90,29 @@ def colorize(values: npt.ArrayLike) -> np.ndarray:
 
 
 def difference_picture(reference: npt.ArrayLike, test: npt.ArrayLike, share: float = 0.95):
-    """The signed per-pixel difference test - reference of two mean renders (channels averaged), as RGB in a
-    diverging map (blue: test darker, white: equal, red: test brighter), and the difference its ends stand for,
-    relative to the reference's mean brightness: the `share` quantile of |difference| (so a few fireflies don't
-    wash the rest out), for the scale bar. (None, 0.0) where the images can't be compared."""
+    """The signed per-pixel difference test - reference of two mean renders (channels averaged) as a palette
+    image: H×W indices into `DIFFERENCE_PALETTE`'s diverging map (blue: test darker, white: equal, red: test
+    brighter; `DIFFERENCE_STEPS` steps a side), and the difference its ends stand for, relative to the reference's
+    mean brightness: the `share` quantile of |difference| (so a few fireflies don't wash the rest out), for the
+    scale bar. (None, 0.0) where the images can't be compared. One byte a pixel, not three: the report's picture
+    is a third of the size, and is made and coded in a fraction of the time."""
     ref, tst = (np.asarray(image, dtype=np.float32)[..., :3] for image in (reference, test))
     if ref.shape != tst.shape:
         return None, 0.0
     ref, tst = (_channel_mean(image) for image in (ref, tst))
-    diff = (tst - ref).astype(np.float32)
+    diff = tst - ref
     diff[~np.isfinite(diff)] = 0.0
-    magnitude = np.abs(diff)
-    limit = float(np.quantile(magnitude, share)) if diff.size else 0.0
+    limit = float(np.quantile(np.abs(diff), share)) if diff.size else 0.0
     finite = np.isfinite(ref)
     brightness = float(np.mean(np.abs(ref[finite]))) if finite.any() else 0.0
-    t = np.minimum(magnitude / np.float32(limit), 1.0) if limit > 0 else np.zeros_like(diff)  # on the map's scale
-    ends = np.where(diff[..., None] > 0, _BRIGHTER - 1.0, _DARKER - 1.0)  # the map's ends, less white
-    rgb = 1.0 + ends * t[..., None]
-    return rgb, (limit / brightness if brightness > 0 else 0.0)
+    if limit > 0:
+        diff *= DIFFERENCE_STEPS / limit  # on the map's scale, in steps
+        np.clip(diff, -DIFFERENCE_STEPS, DIFFERENCE_STEPS, out=diff)
+        diff += DIFFERENCE_STEPS
+        levels = np.rint(diff, out=diff).astype(np.uint8)
+    else:
+        levels = np.full(diff.shape, DIFFERENCE_STEPS, np.uint8)
+    return levels, (limit / brightness if brightness > 0 else 0.0)
 
 
 def _channel_mean(image: np.ndarray) -> np.ndarray:
@@ -113,9 +120,20 @@ def _channel_mean(image: np.ndarray) -> np.ndarray:
     return (image[..., 0].astype(np.float64) + image[..., 1] + image[..., 2]) / 3.0
 
 
-#: The difference map's ends: red where the test is brighter, blue where it is darker.
-_BRIGHTER = np.array([0.7, 0.1, 0.1], np.float32)
-_DARKER = np.array([0.1, 0.25, 0.7], np.float32)
+#: The difference map's steps a side of white: index DIFFERENCE_STEPS is white (equal), 0 and 2 x DIFFERENCE_STEPS
+#: its ends.
+DIFFERENCE_STEPS = 127
+
+
+def _difference_palette() -> np.ndarray:
+    brighter, darker = np.array([0.7, 0.1, 0.1], np.float32), np.array([0.1, 0.25, 0.7], np.float32)
+    step = np.arange(-DIFFERENCE_STEPS, DIFFERENCE_STEPS + 1, dtype=np.float32)[:, None] / DIFFERENCE_STEPS
+    return 1.0 + np.where(step > 0, brighter - 1.0, darker - 1.0) * np.abs(step)  # white to the map's ends
+
+
+#: The difference map's colours, (2 x DIFFERENCE_STEPS + 1, 3) float32: red where the test is brighter, blue where
+#: it is darker, white where they are equal.
+DIFFERENCE_PALETTE = _difference_palette()
 
 
 def map_values(pvalues: npt.ArrayLike, mode: str = "min", channel: int | None = None, qvalues=None) -> np.ndarray:
@@ -180,7 +198,11 @@ def tonemap(image: npt.ArrayLike, key: float = 0.18, scale: float | None = None)
     # sRGB encoding in place: the power on every value, the linear segment where it applies.
     dark = img <= np.float32(0.0031308)
     linear = img[dark] * np.float32(12.92)
-    np.power(img, np.float32(1 / 2.4), out=img)
+    # x ** (1 / 2.4) as exp(log(x) / 2.4): numpy's float32 power has no vector loop (3x slower); within 2 ulp
+    with np.errstate(divide="ignore"):  # log(0): exp(-inf) is 0, and dark pixels are replaced below anyway
+        np.log(img, out=img)
+    img *= np.float32(1 / 2.4)
+    np.exp(img, out=img)
     img *= np.float32(1.055)
     img -= np.float32(0.055)
     img[dark] = linear

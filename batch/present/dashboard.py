@@ -5,7 +5,6 @@ case's full report."""
 
 from __future__ import annotations
 
-import base64
 import html
 import os
 from pathlib import Path
@@ -148,9 +147,9 @@ def _thumbnails(outcome, reference: Path) -> tuple:
             preview = None
         means.append(None if preview is None or not run.n else wc.shrink(preview, THUMBNAIL) / np.float32(run.n))
     scale = wc.exposure(means[0]) if means[0] is not None else None
-    urls: list[str | None] = [None if m is None else _png(wc.tonemap(m, scale=scale)) for m in means]
+    urls: list[str | None] = [None if m is None else wc.png.data_url(wc.tonemap(m, scale=scale)) for m in means]
     difference, limit = (None, 0.0) if any(m is None for m in means) else wc.difference_picture(*means)
-    difference_url = None if difference is None else _png(difference)
+    difference_url = None if difference is None else wc.png.data_url(difference, wc.colormap.DIFFERENCE_PALETTE)
     return *urls, difference_url, limit, pvalue_thumbnail(folder)
 
 
@@ -161,9 +160,4 @@ def pvalue_thumbnail(folder: Path) -> str | None:
     except (OSError, wc.WelchInputError):
         return None
     p[p < 0] = np.nan  # the report writes untested tile-channels as -1
-    return _png(wc.colorize(wc.colormap.map_values(p, "log10")))
-
-
-def _png(rgb: np.ndarray) -> str:
-    data = wc.png.png_bytes(wc.png.to_uint8(rgb), fast=True)
-    return "data:image/png;base64," + base64.b64encode(data).decode("ascii")
+    return wc.png.data_url(wc.colorize(wc.colormap.map_values(p, "log10")))

@@ -140,7 +140,7 @@ def layers_section(summary: dict | None, comparisons: dict[str, wc.Comparison]) 
         c = comparisons.get(row["name"])
         picture = ""
         if c is not None:
-            url = _png(wc.colorize(wc.colormap.map_values(c.pvalues, "log10")))
+            url = wc.png.data_url(wc.colorize(wc.colormap.map_values(c.pvalues, "log10")))
             picture = f'<img class="layer-map" alt="p-value map of {html.escape(row["name"])}" src="{url}">'
         largest = row["largest"]
         difference = (
@@ -258,16 +258,12 @@ def _pictures(c: wc.Comparison, ref: wc.TileStats, test: wc.TileStats, previews=
 
 
 def _side_png(mean: np.ndarray, scale: float) -> str:
-    return _png(wc.tonemap(mean, scale=scale))
+    return wc.png.data_url(wc.tonemap(mean, scale=scale))
 
 
 def _difference_png(ref_mean: np.ndarray, test_mean: np.ndarray) -> tuple[str | None, float | None]:
-    rgb, limit = wc.difference_picture(ref_mean, test_mean)
-    return (None, None) if rgb is None else (_png(rgb), limit)
-
-
-def _png(rgb: np.ndarray) -> str:
-    return "data:image/png;base64," + base64.b64encode(wc.png.png_bytes(wc.png.to_uint8(rgb), fast=True)).decode()
+    levels, limit = wc.difference_picture(ref_mean, test_mean)
+    return (None, None) if levels is None else (wc.png.data_url(levels, wc.colormap.DIFFERENCE_PALETTE), limit)
 
 
 def histogram_svg(c: wc.Comparison, width: int = 420, height: int = 150) -> str:

@@ -58,6 +58,15 @@ def canvas_colours(page) -> int:
     )
 
 
+def canvas_mean(page) -> list[float]:
+    """The canvas's mean red, green and blue."""
+    return page.evaluate(
+        """() => { const c = document.getElementById('canvas'), d = c.getContext('2d').getImageData(0, 0, c.width,
+        c.height).data, sum = [0, 0, 0]; for (let i = 0; i < d.length; i += 4) for (let k = 0; k < 3; k++)
+        sum[k] += d[i + k]; return sum.map(s => s / (d.length / 4)); }"""
+    )
+
+
 def test_the_canvas_is_drawn_and_layers_switch(page):
     page, errors = page
     assert errors == []
@@ -76,6 +85,8 @@ def test_the_canvas_is_drawn_and_layers_switch(page):
     assert page.locator("#difference-bar").is_hidden()
     page.select_option("#base", "difference")  # test - reference per pixel, with its scale bar
     assert page.evaluate("document.getElementById('canvas').toDataURL()") != on_test
+    red, _green, blue = canvas_mean(page)  # the palette picture drawn: the test side brighter, so more red than blue
+    assert red > blue + 10, (red, blue)
     assert page.locator("#difference-bar").is_visible()
     assert "brighter (of the reference's mean brightness" in page.locator("#difference-text").inner_text()
     page.click("#flip")  # A/B: from anything to the test side, then between the sides

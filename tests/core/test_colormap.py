@@ -169,11 +169,28 @@ def test_difference_picture_is_signed_and_scaled_to_the_reference():
     test = ref.copy()
     test[0, 0] = 2.2  # brighter by 10 % of the mean
     test[3, 5] = 1.8  # darker by as much
-    rgb, limit = wc.difference_picture(ref, test, share=1.0)
+    test[2, 2] = 2.05  # a quarter as much brighter: a quarter of the way to the end
+    levels, limit = wc.difference_picture(ref, test, share=1.0)
     assert limit == pytest.approx(0.1)  # the ends stand for +-0.2, a tenth of the mean brightness 2
+    assert levels.dtype == np.uint8 and levels.shape == (4, 6)
+    rgb = wc.colormap.DIFFERENCE_PALETTE[levels]
     np.testing.assert_allclose(rgb[0, 0], [0.7, 0.1, 0.1], atol=1e-6)  # red: the test side brighter
     np.testing.assert_allclose(rgb[3, 5], [0.1, 0.25, 0.7], atol=1e-6)  # blue: darker
     np.testing.assert_array_equal(rgb[1, 1], [1.0, 1.0, 1.0])  # white: equal
+    steps = wc.colormap.DIFFERENCE_STEPS
+    assert (levels[0, 0], levels[3, 5], levels[1, 1], levels[2, 2]) == (2 * steps, 0, steps, steps + 32)  # 31.75 up
+    np.testing.assert_allclose(rgb[2, 2], 1.0 + (np.array([0.7, 0.1, 0.1]) - 1.0) * 32 / steps, atol=1e-6)
     equal, none = wc.difference_picture(ref, ref)
-    assert none == 0.0 and np.all(equal == 1.0)
+    assert none == 0.0 and np.all(equal == steps)
     assert wc.difference_picture(ref, ref[:2]) == (None, 0.0)
+
+
+def test_difference_picture_ignores_what_is_not_finite():
+    ref = np.full((2, 3, 3), 1.0)
+    test = ref + np.array([0.0, 0.5, -0.5])[None, :, None]
+    test[1, 0] = np.inf
+    ref[1, 1] = np.nan
+    levels, limit = wc.difference_picture(ref, test, share=1.0)
+    steps = wc.colormap.DIFFERENCE_STEPS
+    np.testing.assert_array_equal(levels, [[steps, 2 * steps, 0], [steps, steps, 0]])
+    assert limit == pytest.approx(0.5)  # of the mean of the finite reference pixels, 1
