@@ -17,7 +17,10 @@ bpy      Cycles passes whose render costs nothing: one real render, then `PassRe
          checkpoint every 8 passes) with the render operator replaced by a no-op, against the floor of Blender's
          `save_render` and `read_exr` of the same Render Result; both timed from the first pass to the last (the
          final save left out, as for command).
-workers  ``render --command ... --workers 2`` (two Dask workers on this machine) against two floor loops at once.
+workers  ``render --command ... --workers 2 --chunk C`` (two Dask workers on this machine) against two floor loops
+         at once, each timed as whole processes of N and 3N passes: the difference over the 2N passes between, so
+         that start-up (the cluster's), the last chunk's wait and the last save cancel. (A chunk's passes arrive
+         together, so timing them by their progress events, as *command* is, counts too few passes a chunk.)
 
 Prints, per size and source, the floor and the tool in ms a pass and passes per second, the tool's own cost
 (the difference) and that cost as a share of a 1 s GPU pass. Nothing is asserted: the figures go into
@@ -160,29 +163,54 @@ def whole(argv: list[str], env: dict) -> float:
     return time.perf_counter() - start
 
 
-def command_source(prefix: str, tmp: str, runs: int, passes: int, workers: int | None = None) -> dict:
-    passes *= 2 if workers else 1
+def command_argv(template: str, passes: int, out: str) -> list[str]:
+    return [PYTHON, "-m", "batch", "render", "--command", template, "--spp", "1", "--seeds", f"0:{passes}", "--out",
+            out, "--json-progress"]  # fmt: skip
+
+
+def command_source(prefix: str, tmp: str, runs: int, passes: int) -> dict:
     env = dict(os.environ, PYTHONPATH=str(REPO))
     template = f'sh -c "cp {prefix}$(({{seed}} % 4)).exr {{out}}"'
     floors, tools = [], []
     for run in range(runs):
         out = f"{tmp}/run-{run}.npz"
-        argv = [PYTHON, "-m", "batch", "render", "--command", template, "--spp", "1", "--seeds", f"0:{passes}",
-                "--out", out, "--json-progress"]  # fmt: skip
-        if workers:
-            argv += ["--workers", str(workers)]
-        tools.append(timed_lines(argv, '"event": "pass"', env))
+        tools.append(timed_lines(command_argv(template, passes, out), '"event": "pass"', env))
         os.remove(out)
-        floor = [PYTHON, "-c", FLOOR, prefix]
-        if workers:  # as many floor loops at once, each its own share of the passes
-            starts = time.perf_counter()
-            procs = [subprocess.Popen([*floor, f"{tmp}/floor-{w}.exr", str(passes // workers)], cwd=REPO, env=env,
-                                      stdout=subprocess.DEVNULL) for w in range(workers)]  # fmt: skip
-            for proc in procs:
-                proc.wait()
-            floors.append((time.perf_counter() - starts) / passes)  # start-up counted: a bound from above
-        else:
-            floors.append(timed_lines([*floor, f"{tmp}/floor.exr", str(passes)], "pass", env))
+        floors.append(timed_lines([PYTHON, "-c", FLOOR, prefix, f"{tmp}/floor.exr", str(passes)], "pass", env))
+    return {"floor": statistics.median(floors), "tool": statistics.median(tools)}
+
+
+#: Passes a chunk of the workers' runs.
+WORKER_CHUNK = 12
+
+
+def workers_source(prefix: str, tmp: str, runs: int, passes: int, workers: int = 2) -> dict:
+    """`workers` Dask workers against as many floor loops at once, whole processes of `passes` and 3 x `passes`
+    (rounded to whole chunks a worker): the seconds a pass over the difference."""
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    template = f'sh -c "cp {prefix}$(({{seed}} % 4)).exr {{out}}"'
+    short = max(1, round(passes / (workers * WORKER_CHUNK))) * workers * WORKER_CHUNK
+    lengths = (short, 3 * short)
+
+    def tool(n: int) -> float:
+        out = f"{tmp}/workers.npz"
+        seconds = whole([*command_argv(template, n, out), "--workers", str(workers), "--chunk", str(WORKER_CHUNK)],
+                        env)  # fmt: skip
+        os.remove(out)
+        return seconds
+
+    def floor(n: int) -> float:
+        start = time.perf_counter()
+        procs = [subprocess.Popen([PYTHON, "-c", FLOOR, prefix, f"{tmp}/floor-{w}.exr", str(n // workers)], cwd=REPO,
+                                  env=env, stdout=subprocess.DEVNULL) for w in range(workers)]  # fmt: skip
+        for proc in procs:
+            proc.wait()
+        return time.perf_counter() - start
+
+    floors, tools = [], []
+    for _ in range(runs):
+        tools.append((tool(lengths[1]) - tool(lengths[0])) / (lengths[1] - lengths[0]))
+        floors.append((floor(lengths[1]) - floor(lengths[0])) / (lengths[1] - lengths[0]))
     return {"floor": statistics.median(floors), "tool": statistics.median(tools)}
 
 
@@ -253,8 +281,10 @@ def main(argv: list[str] | None = None) -> dict[tuple[str, str], dict]:
                     found = bpy_source(size, args.runs, passes)
                 elif source == "ingest":
                     found = ingest_source(prefix, tmp, args.runs)
+                elif source == "workers":
+                    found = workers_source(prefix, tmp, args.runs, passes)
                 else:
-                    found = command_source(prefix, tmp, args.runs, passes, 2 if source == "workers" else None)
+                    found = command_source(prefix, tmp, args.runs, passes)
                 report(size, source, found)
                 results[(size, source)] = found
             for k in range(4):

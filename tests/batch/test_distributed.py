@@ -117,6 +117,39 @@ def test_chunk_result_round_trips():
     assert (back.height, back.width, back.tile) == (40, 48, 16)
 
 
+def test_a_chunk_handed_over_by_its_file_reads_as_one_sent(tmp_path):
+    """A worker on the client's machine leaves its chunk file to the client (`path`): the client reads the same
+    passes, moments and layers from it as from a chunk sent whole, and removes the file."""
+    rng = np.random.default_rng(15)
+    stats = wc.TileStats(40, 48, 16, 3, wc.RunInfo(spp=4, scene="corner"), keep_pixel_moments=True)
+    layer = wc.TileStats(40, 48, 16, 3, wc.RunInfo(spp=4, scene="corner"))
+    for seed in (9, 3, 5):
+        image = rng.random((40, 48, 3), dtype=np.float32)
+        stats.add_pass(image, seed)
+        layer.add_pass(image / 2, seed)
+    path = tmp_path / "chunk-1.npz"
+    wc.save_stats(path, stats, {"diffuse": layer})
+    sent = dist.ChunkResult.from_stats(wc.load_stats(path), layers=wc.load_layers(path)).arrival()
+    light = wc.load_stats(path, pixels=False, moments=False), wc.load_layers(path, pixels=False)
+    handed = pickle.loads(pickle.dumps(dist.ChunkResult.from_stats(light[0], layers=light[1], path=path)))
+    assert handed.moments is None and handed.pixel_sum is None  # what crosses: the tile sums alone
+    arrival = handed.arrival()
+    assert not path.exists()
+    assert arrival.seeds == sent.seeds == (9, 3, 5)
+    np.testing.assert_array_equal(arrival.stats.pixels.mean, sent.stats.pixels.mean)
+    np.testing.assert_array_equal(arrival.stats.pixels.m2, sent.stats.pixels.m2)
+    np.testing.assert_array_equal(arrival.layers["diffuse"].pixel_sum, sent.layers["diffuse"].pixel_sum)
+    # a file that holds other passes than the worker said is refused, and removed all the same
+    wc.save_stats(path, stats)
+    other = dist.ChunkResult.from_stats(light[0], layers=light[1], worker="worker tcp://x:1", path=path)
+    with pytest.raises(wc.StatsFileError, match="the chunk file of worker tcp://x:1 holds other passes than it sent"):
+        other.arrival()
+    assert not path.exists()
+    wc.save_stats(path, stats)
+    dist.ChunkResult.from_stats(light[0], path=path).discard()  # a chunk the client drops
+    assert not path.exists()
+
+
 @pytest.mark.parametrize(("policy", "seeds"), [("skip", [4, 6]), ("keep", [3, 4, 5, 6])])
 def test_a_served_chunk_holds_exactly_its_seeds(tmp_path, policy, seeds):
     from batch.blender.run import _render_chunk  # imports bpy

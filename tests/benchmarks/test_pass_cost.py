@@ -55,6 +55,18 @@ def test_bpy_passes_are_timed_against_saving_and_reading_the_render_result(capsy
     assert results[("32x24", "bpy")]["floor"] > 0 and results[("32x24", "bpy")]["tool"] > 0
 
 
+def test_dask_workers_are_timed_over_the_difference_of_two_runs(capsys, monkeypatch):
+    pytest.importorskip("distributed")
+    lengths = []
+    whole = pass_cost.whole
+    monkeypatch.setattr(pass_cost, "whole", lambda argv, env: lengths.append(argv[argv.index("--seeds") + 1])
+                        or whole(argv, env))  # fmt: skip
+    results = pass_cost.main(["--sizes", "64x48", "--sources", "workers", "--runs", "1", "--passes", "24"])
+    check(results, capsys.readouterr().out, "64x48", ("workers",))
+    assert lengths == ["0:72", "0:24"]  # whole chunks of both workers, the longer run three times the shorter
+    assert results[("64x48", "workers")]["floor"] > 0
+
+
 @pytest.mark.parametrize("argv", [["--sizes", "64by48"], ["--sizes", "0x8"], ["--passes", "2"]])
 def test_bad_sizes_and_pass_counts_are_refused(argv, capsys):
     with pytest.raises(SystemExit) as exc:

@@ -3,6 +3,7 @@ error that stopped it (`ChunkError`)."""
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -20,7 +21,12 @@ class ChunkResult:
     grid and the `RunInfo` (as JSON) of the run; each pass's render seconds; the chunk's seconds in
     the worker, request to result; its warnings; which worker rendered it; and the same for each layer of the
     passes (light components, light groups: name -> (sums, pixel sum)). One way out (`from_stats`), one way in
-    (`stats`, `arrival`)."""
+    (`stats`, `arrival`).
+
+    `path`: the chunk's statistics file, where the client shares the worker's machine (a cluster started here).
+    The result then carries the tile sums alone, and the client reads the pixel moments and sums from the file
+    and removes it (`discard` where it drops the chunk): at 1920x1080 a chunk's 100 MB of moments are neither
+    read by the worker nor sent through Dask."""
 
     seeds: tuple[int, ...]
     sums: np.ndarray
@@ -35,10 +41,11 @@ class ChunkResult:
     worker: str = ""
     layers: dict[str, tuple[np.ndarray, np.ndarray | None]] = field(default_factory=dict)
     moments: tuple[np.ndarray, np.ndarray] | None = None
+    path: str | None = None
 
     @classmethod
     def from_stats(
-        cls, stats: wc.TileStats, seconds=(), wall_seconds=0.0, warnings=(), worker="", layers=None
+        cls, stats: wc.TileStats, seconds=(), wall_seconds=0.0, warnings=(), worker="", layers=None, path=None
     ) -> ChunkResult:
         def arrays(run: wc.TileStats):
             pixels = None if run.pixel_sum is None else np.ascontiguousarray(run.pixel_sum)
@@ -59,21 +66,48 @@ class ChunkResult:
             worker=worker,
             layers={name: arrays(layer) for name, layer in (layers or {}).items()},
             moments=None if stats.pixels is None else (stats.pixels.mean, stats.pixels.m2),
+            path=None if path is None else os.fspath(path),
         )
 
     def stats(self) -> wc.TileStats:
-        pixels = None if self.moments is None else wc.PixelMoments.of(*self.moments, len(self.seeds))
-        return self._run(self.sums, self.pixel_sum, pixels)
+        return self._read()[0]
 
     def arrival(self) -> Arrival:
         """The chunk's passes and layers for the render loop (`batch.jobs.loop`)."""
-        layers = {name: self._run(sums, pixels) for name, (sums, pixels) in self.layers.items()}
-        return Arrival(self.seeds, self.stats(), layers, None, self.warnings, self.worker)
+        stats, layers = self._read()
+        return Arrival(self.seeds, stats, layers, None, self.warnings, self.worker)
+
+    def discard(self) -> None:
+        """Remove the chunk's file (`path`), for a chunk the client drops."""
+        if self.path is not None:
+            remove_file(self.path)
+
+    def _read(self) -> tuple[wc.TileStats, dict[str, wc.TileStats]]:
+        """The chunk's passes and layers: from its file (then removed), or as sent."""
+        if self.path is None:
+            pixels = None if self.moments is None else wc.PixelMoments.of(*self.moments, len(self.seeds))
+            layers = {name: self._run(sums, pixels) for name, (sums, pixels) in self.layers.items()}
+            return self._run(self.sums, self.pixel_sum, pixels), layers
+        try:
+            stats, layers = wc.load_stats(self.path), wc.load_layers(self.path)
+        finally:
+            self.discard()
+        if tuple(stats.seeds) != self.seeds or list(layers) != list(self.layers):
+            raise wc.StatsFileError(f"{self.path}: the chunk file of {self.worker} holds other passes than it sent")
+        return stats, layers
 
     def _run(self, sums, pixel_sum, pixels=None) -> wc.TileStats:
         info = wc.RunInfo.from_json(self.info)
         return wc.TileStats.from_sums(sums, self.seeds, self.height, self.width, self.tile, info, pixel_sum=pixel_sum,
                                       pixels=pixels, mean_from_pixels=True)  # fmt: skip
+
+
+def remove_file(path: str) -> None:
+    """Remove `path` if it is there."""
+    try:
+        os.unlink(path)
+    except FileNotFoundError:
+        pass
 
 
 @dataclass(frozen=True)

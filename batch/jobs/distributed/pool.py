@@ -67,7 +67,8 @@ class PassPool:
         self.token = uuid.uuid4().hex[:12]
         self.resources = resources
         self.threads = cluster.threads
-        self.client = _client(distributed, cluster.address)
+        self.handoff = cluster.local  # the workers share this machine: chunk files are read here, not sent
+        self.client = _client(distributed, cluster.address, True if cluster.local else None)
         self._as_completed = distributed.as_completed(loop=self.client.loop)
         self._pending: dict = {}  # future -> its seeds
         self._submitted: set[int] = set()
@@ -110,6 +111,7 @@ class PassPool:
             self.job,
             seeds,
             self.threads,
+            self.handoff,
             key=f"welch-chunk-{self.token}-{seeds[0]}",
             retries=RETRIES,
             resources=self.resources,
@@ -133,8 +135,10 @@ class PassPool:
                 raise BatchError(f"{result.worker}: {result.message}")
             fresh = [s for s in result.seeds if s not in self._counted]
             if result.seeds and not fresh:
+                result.discard()
                 continue  # these seeds arrived already: count them once (an empty chunk: all skipped, warnings)
             if len(fresh) != len(result.seeds):  # chunks are disjoint: impossible unless a worker misbehaves
+                result.discard()
                 raise ChunkFailed(f"{result.worker} sent back seeds of more than one chunk: {result.seeds}")
             self._counted.update(fresh)
             yield result

@@ -23,7 +23,7 @@ from ..launch import THREADS_ENV
 from ..lock import process_alive
 from ..seeds import format_seeds
 from ..side import Side
-from .chunks import ChunkError, ChunkResult
+from .chunks import ChunkError, ChunkResult, remove_file
 
 #: Worker-local folders of the serving render processes (chunk files), named by the worker's PID so a later
 #: worker can remove those of dead ones.
@@ -67,8 +67,10 @@ class _Server:
         if isinstance(event, protocol.PassDone):
             self.rendered += 1
 
-    def render(self, seeds: tuple[int, ...], worker: str) -> ChunkResult | ChunkError:
-        """Render exactly `seeds`; raise RenderProcessDied if the process ends before it has saved them."""
+    def render(self, seeds: tuple[int, ...], worker: str, handoff: bool = False) -> ChunkResult | ChunkError:
+        """Render exactly `seeds`; raise RenderProcessDied if the process ends before it has saved them. With
+        `handoff` (the client shares this machine) the chunk file is left for the client to read (`ChunkResult`'s
+        `path`): the result carries its tile sums alone."""
         self._chunks += 1
         out = os.path.join(self.folder, f"chunk-{self._chunks}.npz")
         start = time.perf_counter()
@@ -76,7 +78,7 @@ class _Server:
         try:
             events = self.side.render_chunk(seeds, out, self._count)
         except (RendererFailed, RuntimeError, KeyboardInterrupt) as exc:  # a crash may be this machine's (memory)
-            _remove(out)  # the passes saved before a failure: the chunk is rendered again, or the run stops
+            remove_file(out)  # the passes saved before a failure: the chunk is rendered again, or the run stops
             if self.closed:  # the pool ended it (a cancel, Ctrl-C): nobody waits for the chunk, nothing to log
                 return ChunkError(seeds, "the pool was closed", worker)
             raise RenderProcessDied(
@@ -84,18 +86,22 @@ class _Server:
                 f"{len(seeds)} passes of seeds {format_seeds(seeds)}: {exc}"
             ) from None
         except BatchError as exc:  # the job stopped on its input: not worth a retry
-            _remove(out)
+            remove_file(out)
             return ChunkError(seeds, str(exc).removeprefix("worker side: "), worker)
         finally:
             self.chunk = ()
         try:
-            stats, layers = wc.load_stats(out), wc.load_layers(out)
-        finally:
-            _remove(out)
+            stats, layers = wc.load_stats(out, not handoff, not handoff), wc.load_layers(out, not handoff)
+        except BaseException:
+            remove_file(out)
+            raise
+        if not handoff:
+            remove_file(out)
         seconds = {e.seed: e.seconds for e in events if isinstance(e, protocol.PassDone)}
         warnings = [e.message for e in events if isinstance(e, protocol.Warned)]
         passes = [seconds.get(seed, math.nan) for seed in stats.seeds]
-        return ChunkResult.from_stats(stats, passes, time.perf_counter() - start, warnings, worker, layers)
+        return ChunkResult.from_stats(stats, passes, time.perf_counter() - start, warnings, worker, layers,
+                                      out if handoff else None)  # fmt: skip
 
     def close(self, kill: bool = False, wait: float = CLOSE_WAIT) -> None:
         """End the process and remove its folder. With `kill` it gets SIGTERM (it stops after its current pass);
@@ -113,11 +119,12 @@ _SERVERS: dict[tuple[str, int], _Server] = {}
 _SERVERS_LOCK = threading.Lock()
 
 
-def render_chunk(pool: str, job: RenderJob, seeds: tuple[int, ...], threads: int | None = None):
+def render_chunk(pool: str, job: RenderJob, seeds: tuple[int, ...], threads: int | None = None, handoff: bool = False):
     """The Dask task: render exactly `seeds` of `job` in this worker thread's serving render process for `pool`
     (started on the first chunk, and again if it has died), with `threads` Cycles CPU threads (None: Cycles'
-    choice). Returns a `ChunkResult`, or a `ChunkError` for a job error; raises RenderProcessDied if the process
-    dies during the chunk."""
+    choice). Returns a `ChunkResult` (with `handoff`, which a client on this machine asks for: its chunk file left
+    for the client), or a `ChunkError` for a job error; raises RenderProcessDied if the process dies during the
+    chunk."""
     key = (pool, threading.get_ident())
     with _SERVERS_LOCK:
         server = _SERVERS.get(key)
@@ -127,7 +134,7 @@ def render_chunk(pool: str, job: RenderJob, seeds: tuple[int, ...], threads: int
             server = _SERVERS[key] = _Server(pool, job, threads)
     with server.lock:
         try:
-            return server.render(tuple(seeds), _worker_name())
+            return server.render(tuple(seeds), _worker_name(), handoff)
         except RenderProcessDied:
             with _SERVERS_LOCK:
                 if _SERVERS.get(key) is server:
@@ -179,13 +186,6 @@ def _work_folder() -> str:
         if entry.name.startswith(WORK_PREFIX) and pid.isdigit() and not process_alive(int(pid)):
             shutil.rmtree(entry.path, ignore_errors=True)
     return tempfile.mkdtemp(prefix=f"{WORK_PREFIX}{os.getpid()}-", dir=base)
-
-
-def _remove(path: str) -> None:
-    try:
-        os.unlink(path)
-    except FileNotFoundError:
-        pass
 
 
 def dask_setup(worker) -> None:
