@@ -215,9 +215,10 @@ def with_preview(arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     return arrays | {"preview_sum": shrink(pixel_sum, PREVIEW_SIDE)}
 
 
-def write_arrays(path: str | os.PathLike, arrays: dict[str, np.ndarray]) -> None:
-    """Write a statistics file's `arrays` (`stats_arrays`) to `path` atomically, checked to read back; raises
-    WelchInputError with one line (naming the file and the reason) when the file can't be written."""
+def write_arrays(path: str | os.PathLike, arrays: dict[str, np.ndarray], verify: bool = True) -> None:
+    """Write a statistics file's `arrays` (`stats_arrays`) to `path` atomically, checked to read back (unless not
+    `verify`: a file its reader checks at once, a worker's chunk); raises WelchInputError with one line (naming
+    the file and the reason) when the file can't be written."""
 
     def write(f) -> None:
         # zipfile directly instead of np.savez: the archive is closed on every path, so a failed write raises
@@ -232,14 +233,14 @@ def write_arrays(path: str | os.PathLike, arrays: dict[str, np.ndarray]) -> None
                     np.lib.format.write_array_header_1_0(member, np.lib.format.header_data_from_array_1_0(array))
                     member.write(array.reshape(-1).view(np.uint8))
 
-    def verify(tmp: Path) -> None:
+    def read_back(tmp: Path) -> None:
         with zipfile.ZipFile(tmp) as archive:
             bad = archive.testzip()  # reads every member back and checks its CRC
             if bad is not None or sorted(archive.namelist()) != sorted(f"{k}.npy" for k in arrays):
                 raise OSError(f"the written file does not read back ({bad or 'members missing'})")
 
     try:
-        atomic_write(path, write, verify)
+        atomic_write(path, write, read_back if verify else None)
     except (OSError, zipfile.BadZipFile) as exc:
         reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
         raise WelchInputError(f"can't write statistics file {os.fspath(path)!r}: {reason}") from None

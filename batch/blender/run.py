@@ -206,7 +206,7 @@ def _render_chunk(
     chunk, chunk_layers = _like(like, moments=True), {name: _like(like) for name in layers or {}}
     # Saved by render_passes once it ends, however it ends (with the passes done so far on a failure or a stop).
     render_passes(renderer, request.seeds, chunk, progress, job.on_nan, request.out, len(request.seeds) + 1, stop,
-                  chunk_layers)  # fmt: skip
+                  chunk_layers, scratch=True)  # fmt: skip
     if chunk.n == 0:
         wc.save_stats(request.out, chunk, chunk_layers)  # every pass was skipped (--on-nan skip): it still answers
     progress.emit(protocol.Saved(out=request.out, passes=chunk.n))
@@ -233,14 +233,16 @@ def render_passes(
     stop=None,
     layers: dict[str, wc.TileStats] | None = None,
     pass_images: str | None = None,
+    scratch: bool = False,
 ) -> None:
     """Render `seeds` into `stats` (and `layers`, each pass's light components and light groups) through the one
     render loop (`batch.jobs.loop.render_loop`): `out` saved every `checkpoint_every` passes, at the end and on
-    interruption; each pass's image also into the folder `pass_images` where given (`batch.jobs.pairs`).
+    interruption (a `scratch` file: a worker's chunk, see `batch.jobs.loop.Run`); each pass's image also into the
+    folder `pass_images` where given (`batch.jobs.pairs`).
 
     `stop`, if given, is asked between passes whether to stop (raising KeyboardInterrupt, as Ctrl-C does).
     """
-    run = Run(out, (), stats, layers)
+    run = Run(out, (), stats, layers, scratch)
     rendered = _rendered(renderer, seeds, run, progress, on_nan, stop, pass_images)
     render_loop(rendered, run, progress, checkpoint_every)
 

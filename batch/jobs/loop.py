@@ -35,13 +35,17 @@ class Arrival:
 class Run:
     """The statistics file a loop writes, `out` (None: kept in memory only): `stats` and `layers` as they grow,
     saved with their passes in the order of `seeds` (the job's: what one process renders, whatever order the
-    passes arrive in)."""
+    passes arrive in). A `scratch` file (a worker's chunk, read at once and removed by the process that asked
+    for it, which checks it as it reads) is written without a preview and not read back: at 1920x1080 the two
+    took 50 ms of a chunk's 130 ms save."""
 
-    def __init__(self, out: str | None, seeds=(), stats: wc.TileStats | None = None, layers: dict | None = None):
+    def __init__(self, out: str | None, seeds=(), stats: wc.TileStats | None = None, layers: dict | None = None,
+                 scratch: bool = False):  # fmt: skip
         self.out = out
         self.position = {seed: i for i, seed in enumerate(seeds)}
         self.stats = stats
         self.layers = dict(layers or {})
+        self.scratch = scratch
 
     @classmethod
     def of(cls, job: RenderJob, stats: wc.TileStats | None = None, layers: dict | None = None) -> Run:
@@ -78,7 +82,9 @@ class Run:
         if order and order != list(range(self.stats.n)):
             self.stats = _reordered(self.stats, order)
             self.layers = {name: _reordered(layer, order) for name, layer in self.layers.items()}
-        if checkpoints is None:
+        if self.scratch:
+            wc.formats.write_arrays(self.out, wc.formats.stats_arrays(self.stats, self.layers), verify=False)
+        elif checkpoints is None:
             wc.save_stats(self.out, self.stats, self.layers)
         else:
             checkpoints.write(self.out, self.stats, self.layers)

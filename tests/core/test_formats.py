@@ -12,7 +12,7 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 from welch_core import PixelMoments, RunInfo, StatsFileError, TileStats, WelchInputError, load_stats, save_stats
-from welch_core.formats import FORMAT_NAME, FORMAT_VERSION, stats_arrays
+from welch_core.formats import FORMAT_NAME, FORMAT_VERSION, stats_arrays, write_arrays
 
 
 def make_run(seed=0, n=4, height=24, width=40, tile=8, info=None):
@@ -165,6 +165,19 @@ def test_failed_write_keeps_the_old_file(tmp_path, monkeypatch):
         save_stats(path, make_run(seed=3))
     assert path.read_bytes() == good
     assert sorted(os.listdir(tmp_path)) == ["run.npz"]
+
+
+def test_a_written_file_is_read_back_unless_its_reader_checks_it(tmp_path, monkeypatch):
+    run = make_run()
+    path = tmp_path / "run.npz"
+    monkeypatch.setattr(zipfile.ZipFile, "testzip", lambda archive: "sums.npy")  # the read-back finds a bad member
+    msg = f"can't write statistics file {str(path)!r}: the written file does not read back (sums.npy)"
+    with pytest.raises(WelchInputError, match=re.escape(msg)):
+        write_arrays(path, stats_arrays(run))
+    assert not path.exists()
+    write_arrays(path, stats_arrays(run), verify=False)  # a worker's chunk: read, and checked, at once
+    monkeypatch.undo()
+    assert_array_equal(load_stats(path).sums, run.sums)
 
 
 def test_a_failed_write_prints_nothing_afterwards(tmp_path):
