@@ -97,14 +97,15 @@ def _reordered(stats: wc.TileStats, order: list[int]) -> wc.TileStats:
                                   mean_from_pixels=True)  # fmt: skip
 
 
-def render_loop(arrivals: Iterable[Arrival], run: Run, progress, checkpoint_every: int) -> None:
+def render_loop(arrivals: Iterable[Arrival], run: Run, progress, checkpoint_every: int,
+                checkpoints: Checkpoints | None = None) -> None:  # fmt: skip
     """Add each arrival to `run`, report its passes to `progress` (a `batch.present.progress.Progress`) and save
-    every `checkpoint_every` passes (by a thread of its own, `batch.jobs.checkpoint`: the passes go on meanwhile)
-    and at the end, also when the loop ends on a failure or an interrupt (the source raises KeyboardInterrupt on
-    Ctrl-C or SIGTERM): nothing that arrived is lost. The last save waits for the checkpoint being written, so the
-    file ends with every pass."""
+    every `checkpoint_every` passes, or further apart where writing them would take the passes' cores (by a thread
+    of its own, `batch.jobs.checkpoint`: the passes go on meanwhile), and at the end, also when the loop ends on a
+    failure or an interrupt (the source raises KeyboardInterrupt on Ctrl-C or SIGTERM): nothing that arrived is
+    lost. The last save waits for the checkpoint being written, so the file ends with every pass."""
     unsaved, last = 0, time.perf_counter()
-    checkpoints = Checkpoints()
+    checkpoints = checkpoints or Checkpoints()
     try:
         for arrival in arrivals:
             run.add(arrival)
@@ -117,7 +118,7 @@ def render_loop(arrivals: Iterable[Arrival], run: Run, progress, checkpoint_ever
             for seed, seconds in zip(seeds, arrival.seconds or [shared] * len(seeds), strict=True):
                 progress.pass_done(seed, seconds)
             last = now
-            if unsaved >= checkpoint_every:
+            if unsaved >= checkpoint_every and checkpoints.due():
                 run.save(checkpoints)
                 unsaved = 0
     finally:

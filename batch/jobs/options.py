@@ -855,7 +855,8 @@ OPTIONS = {
             "--checkpoint-every",
             None,
             "integer",
-            "save the statistics file every N passes",
+            "save the statistics file every N passes, or further apart where writing it would take more than a tenth "
+            "of the time (fast passes of a large image)",
             default=8,
             low=1,
             high=MAX_PASSES,

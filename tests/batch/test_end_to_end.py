@@ -127,7 +127,8 @@ def test_resume_after_kill(tmp_path):
         proc.kill()
         proc.wait()
     partial = wc.load_stats(out)
-    assert 8 <= partial.n < 400 and partial.n % 4 == 0
+    # a checkpoint every 4 passes, or further apart where writing takes more than a tenth of the time
+    assert 4 <= partial.n < 400 and partial.n % 4 == 0
     assert partial.seeds == list(range(partial.n))
     done = batch("render", *SMALL, "--tile", 16, "--seeds", "0:20", "--spp", 1, "--out", out, check=2)
     assert "already exists: pass --resume" in done.stderr
