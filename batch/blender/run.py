@@ -249,8 +249,10 @@ def render_passes(
 
 def _rendered(renderer, seeds, run: Run, progress: Progress, on_nan: str, stop, pass_images=None) -> Iterator[Arrival]:
     """Each pass of `seeds` as it is rendered here, added to `run` at once (a skipped one, `on_nan`, arrives not
-    at all)."""
-    for seed in seeds:
+    at all). A renderer that can (`start_next`: a command's) renders the next pass while this one is added."""
+    seeds = list(seeds)
+    start_next = getattr(renderer, "start_next", None)
+    for index, seed in enumerate(seeds):
         if stop is not None and stop.requested:
             raise KeyboardInterrupt
         start = time.perf_counter()
@@ -261,6 +263,8 @@ def _rendered(renderer, seeds, run: Run, progress: Progress, on_nan: str, stop, 
                 added = add_layered_pass(run.stats, run.layers, images, seed, on_nan, progress.warning)
             else:
                 image = renderer.render(seed)
+                if start_next is not None and index + 1 < len(seeds):
+                    start_next(seeds[index + 1])
                 added = add_pass(run.stats, image, seed, on_nan, progress.warning)
         except wc.WelchInputError as exc:
             # --on-nan answers non-finite pixels only: another size or layer set is no pass of this run

@@ -25,6 +25,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 
 from .._siblings import welch_core as wc
@@ -71,9 +72,41 @@ def run_info(job) -> wc.RunInfo:
     )
 
 
+class _Cancelled(Exception):
+    """A pass started ahead that nobody will take (the run ended first)."""
+
+
+class _Ahead:
+    """The pass of `seed` rendering on a thread of its own (`CommandRenderer.start_next`)."""
+
+    def __init__(self, seed: int, render):
+        self.seed = seed
+        self.result: tuple | None = None  # (image, its file)
+        self.error: BaseException | None = None
+        self.thread = threading.Thread(target=self._run, args=(render,), name=f"welch-pass-{seed}", daemon=True)
+        self.thread.start()
+
+    def _run(self, render) -> None:
+        try:
+            self.result = render(self.seed)
+        except BaseException as exc:  # raised on the render loop's thread, when it takes the pass
+            self.error = exc
+
+    def take(self) -> tuple:
+        self.thread.join()
+        if self.error is not None:
+            raise self.error
+        return self.result
+
+
 class CommandRenderer:
     """Renders passes by running a job's command (see the module docstring); a context manager that owns the
-    folder the passes are written to."""
+    folder the passes are written to.
+
+    `start_next(seed)` runs the next pass's command while this process adds the pass before it (reading the EXR
+    and running a process release the GIL): on a GPU the tool's work on a pass hides behind the next render, and
+    with a renderer that costs nothing the pass's copy and decoding overlap its accumulation. One pass is ahead at
+    most; a pass started ahead and not taken is ended with the run."""
 
     def __init__(self, job):
         self.job = job
@@ -85,6 +118,8 @@ class CommandRenderer:
         self.stop = None  # a `batch.blender.run.StopRequest`: a stop ends the command's pass at once
         self._slowest = 0.0  # seconds of the slowest pass so far
         self.pass_file: str | None = None  # the EXR of the last pass, deleted when the next one renders
+        self._ahead: _Ahead | None = None  # the pass rendering on a thread of its own
+        self._closing = threading.Event()  # the run has ended: a pass started ahead stops
 
     def __enter__(self) -> CommandRenderer:
         # A paired check's side keeps its passes' files as its pass images: written on their file system, a rename
@@ -95,6 +130,10 @@ class CommandRenderer:
         return self
 
     def __exit__(self, *exc) -> bool:
+        self._closing.set()
+        if self._ahead is not None:
+            self._ahead.thread.join()
+            self._ahead = None
         self._forget()
         if self._folder is not None:
             self._folder.cleanup()
@@ -120,6 +159,8 @@ class CommandRenderer:
                     pass
                 if self.stop is not None and self.stop.requested:
                     raise KeyboardInterrupt
+                if self._closing.is_set():
+                    raise _Cancelled
                 if time.monotonic() - start > limit:
                     raise BatchError(f"--command's pass for seed {seed} ran past {limit:g} s and was stopped ({why})")
         finally:
@@ -134,13 +175,30 @@ class CommandRenderer:
         return image.shape[1], image.shape[0]
 
     def render(self, seed: int):
-        """Run the command for `seed` and read its EXR: H×W×3 float32, top row first."""
+        """Run the command for `seed` and read its EXR: H×W×3 float32, top row first (the pass started ahead, where
+        it is this seed's)."""
         if self._probed is not None and self._probed[0] == seed:
             (_, image, self.replayed_seconds), self._probed = self._probed, None
             return image
         self.replayed_seconds = 0.0
         assert self._folder is not None, "use the renderer as a context manager"
         self._forget()
+        ahead, self._ahead = self._ahead, None
+        if ahead is not None and ahead.seed != seed:  # not asked for after all: ended, its file with the folder
+            self._closing.set()
+            ahead.thread.join()
+            self._closing.clear()
+            ahead = None
+        image, self.pass_file = ahead.take() if ahead is not None else self._render(seed)
+        return image
+
+    def start_next(self, seed: int) -> None:
+        """Start the pass of `seed` on a thread of its own: the next `render(seed)` takes it."""
+        assert self._ahead is None, "one pass ahead at most"
+        self._ahead = _Ahead(seed, self._render)
+
+    def _render(self, seed: int) -> tuple:
+        """Run the command for `seed` and read its EXR: (image, the EXR's path)."""
         out = os.path.join(self._folder.name, f"pass-{seed}.exr")
         line = argv(self.job.command, seed, out, self.job.spp, self.job.overrides)
         code, stdout, stderr = self._run(line, seed)
@@ -150,8 +208,12 @@ class CommandRenderer:
                              f"{' '.join(said.split()) or 'no output'}")  # fmt: skip
         if not os.path.exists(out):
             raise BatchError(f"--command exited 0 for seed {seed} without writing {{out}} ({out})")
-        self.pass_file = out
-        image, names = wc.read_exr_colour(out)
+        try:
+            image, names = wc.read_exr_colour(out)
+        except BaseException:
+            with contextlib.suppress(FileNotFoundError):
+                os.remove(out)
+            raise
         if self._channels is None:
             self._channels = names
         elif names != self._channels:  # another layer written by mistake: its colour is not the image's
@@ -159,7 +221,7 @@ class CommandRenderer:
                 f"--command wrote channels {names} for seed {seed}, its first pass {self._channels}: every pass "
                 "must hold the same channels"
             )
-        return image
+        return image, out
 
     def _forget(self) -> None:
         """Delete the last pass's file, unless it was kept (moved away)."""

@@ -211,6 +211,55 @@ def test_a_hung_pass_is_ended_by_sigterm_at_once_and_by_the_pass_limit(toy):
     )
 
 
+#: A renderer that says when a pass starts (a file started-SEED) and, for seed 1, waits for a file "go" first;
+#: seed 3 fails.
+WAITING = """
+import os, sys, time
+import numpy as np
+import welch_core as wc
+seed, out = int(sys.argv[1]), sys.argv[2]
+open(f"started-{seed}", "w").close()
+while seed == 1 and not os.path.exists("go"):
+    time.sleep(0.01)
+if seed == 3:
+    sys.exit("waiting: no pass for seed 3")
+wc.write_exr(out, np.full((8, 8, 3), seed, np.float32))
+"""
+
+
+def wait_for(path: Path, seconds: float = 30.0) -> None:
+    deadline = time.monotonic() + seconds
+    while not path.exists():
+        assert time.monotonic() < deadline, f"{path} never appeared"
+        time.sleep(0.01)
+
+
+def test_the_next_pass_renders_while_this_one_is_added(tmp_path):
+    """`start_next` runs the next pass's command at once, on a thread of its own: `render` of that seed takes it.
+    A failure of a pass started ahead is raised when the pass is taken; one nobody takes ends with the run."""
+    (tmp_path / "waiting.py").write_text(WAITING)
+    job = RenderJob(out="w.npz", seeds=range(5), command="{python} waiting.py {seed} {out}", command_dir=str(tmp_path))
+    with command.CommandRenderer(job) as renderer:
+        assert renderer.render(0)[0, 0, 0] == 0
+        first = renderer.pass_file
+        renderer.start_next(1)
+        wait_for(tmp_path / "started-1")  # the next pass runs while this process is free to add the last one
+        assert renderer.pass_file == first and os.path.exists(first)  # the pass taken keeps its file meanwhile
+        (tmp_path / "go").touch()
+        assert renderer.render(1)[0, 0, 0] == 1 and not os.path.exists(first)
+        renderer.start_next(3)
+        with pytest.raises(BatchError) as failed:
+            renderer.render(3)
+        assert str(failed.value) == "--command failed for seed 3 (exit code 1): waiting: no pass for seed 3"
+        (tmp_path / "go").unlink()
+        (tmp_path / "started-1").unlink()
+        renderer.start_next(1)  # waits for "go", which never comes
+        wait_for(tmp_path / "started-1")
+        start = time.monotonic()
+    assert time.monotonic() - start < 5  # the pass nobody took was ended with the run
+    assert subprocess.run(["pgrep", "-f", "waiting.py 1 "], capture_output=True).returncode == 1
+
+
 def suite_file(folder: Path, passes: int = 16) -> Path:
     path = folder / "welch_toy.toml"
     path.write_text(
