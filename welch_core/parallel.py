@@ -1,5 +1,6 @@
 """A pass's per-pixel work on every core: its rows split into one chunk a core, each worked on by a thread (and a
-few independent tasks, a report's pictures, each on a thread of its own).
+few independent tasks, a report's pictures, each on a thread of its own; and the next of a sequence, a pass's file,
+read while the last one is worked on).
 
 numpy's elementwise operations and reductions release the GIL, so threads of one process run them at once: no
 copy of the pass to another process, and inside Blender as well. Each element's arithmetic is the same whichever
@@ -10,7 +11,7 @@ from __future__ import annotations
 
 import os
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 
 #: Below this many elements (pixels x channels) a pass is worked on by the calling thread alone: handing chunks to
@@ -61,6 +62,18 @@ def at_once(*tasks: Callable[[], object]) -> list:
     with ThreadPoolExecutor(len(tasks), thread_name_prefix="welch-tasks") as executor:
         futures = [executor.submit(task) for task in tasks]
     return [future.result() for future in futures]
+
+
+def one_ahead(work: Callable[[object], object], items: Iterable) -> Iterator:
+    """`work(item)` of each of `items`, in order, the next item's on a thread of its own while the caller uses the
+    last one's (reading a file: the reading releases the GIL); an item's error is raised when its turn comes."""
+    items = list(items)
+    with ThreadPoolExecutor(1, thread_name_prefix="welch-ahead") as executor:
+        upcoming = executor.submit(work, items[0]) if items else None
+        for index in range(len(items)):
+            done = upcoming.result()
+            upcoming = executor.submit(work, items[index + 1]) if index + 1 < len(items) else None
+            yield done
 
 
 def _executor() -> ThreadPoolExecutor:

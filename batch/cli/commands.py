@@ -437,24 +437,31 @@ def cmd_ingest(args) -> int:
         progress = Progress(len(args.pass_files), label="ingest")
         progress.start(0, args.out)
         negative = False
-        for index, path in enumerate(args.pass_files):
-            start = time.perf_counter()
-            image = first if index == 0 else wc.read_exr(path)
-            images = {"combined": image}
+
+        def read(index: int) -> tuple[dict, int]:
+            """A pass's images and seed (its file's hash where no seed is given)."""
+            path = args.pass_files[index]
+            images = {"combined": first if index == 0 else wc.read_exr(path)}
             if layers:
                 images |= channel_layers(wc.read_exr_channels(path), args.layers, path)
+            return images, args.seeds[index] if args.seeds is not None else _content_seed(path)
+
+        start = time.perf_counter()
+        # The next file is read while this one is added (reading and hashing release the GIL).
+        for index, (images, seed) in enumerate(wc.parallel.one_ahead(read, range(len(args.pass_files)))):
+            path, image = args.pass_files[index], images["combined"]
             if not negative and (image < 0).any():
                 negative = True
                 progress.warning(f"{path} has negative pixel values (a filter with negative lobes?): they are kept")
-            seed = args.seeds[index] if args.seeds is not None else _content_seed(path)
             try:
-                if not add_layered_pass(
+                added = add_layered_pass(
                     stats, layers, images, seed, args.on_nan, lambda text, p=path: progress.warning(f"{p}: {text}")
-                ):
-                    continue
+                )
             except wc.WelchInputError as exc:
                 raise wc.WelchInputError(f"{path}: {exc}") from None
-            progress.pass_done(seed, time.perf_counter() - start)
+            if added:  # its seconds: since the pass before it was added (its file read meanwhile)
+                progress.pass_done(seed, time.perf_counter() - start)
+            start = time.perf_counter()
         _refuse_existing(args.out)
         wc.save_stats(args.out, stats, layers)
     progress.finished(args.out, stats.n)

@@ -96,3 +96,26 @@ def test_absorbing_a_chunks_moments_in_place_is_merging_them(monkeypatch, cores)
     assert empty.n == 4 and np.array_equal(empty.m2, chunk.m2) and empty.m2 is not chunk.m2
     with pytest.raises(wc.WelchInputError, match=r"^pixel moments of different images: \(41, 23, 3\) and \(4, 4, 3\)$"):
         run.absorb(wc.PixelMoments(4, 4))
+
+
+def test_one_ahead_works_on_the_next_item_while_the_caller_has_the_last():
+    """The next item's work starts before the caller takes it (it waits here for the caller's signal), the
+    results come in order, and an item's error is raised when its turn comes, after the items before it."""
+    taken, log = threading.Event(), []
+
+    def work(item):
+        if item == 1:
+            assert taken.wait(10)  # started while the caller still holds item 0's result
+        if item == 3:
+            raise ValueError("no item 3")
+        log.append(item)
+        return item * 10
+
+    results = parallel.one_ahead(work, range(5))
+    assert next(results) == 0
+    taken.set()
+    assert next(results) == 10 and next(results) == 20
+    with pytest.raises(ValueError, match="no item 3"):
+        next(results)
+    assert log == [0, 1, 2]
+    assert list(parallel.one_ahead(work, [])) == []
