@@ -208,12 +208,7 @@ class CommandRenderer:
                              f"{' '.join(said.split()) or 'no output'}")  # fmt: skip
         if not os.path.exists(out):
             raise BatchError(f"--command exited 0 for seed {seed} without writing {{out}} ({out})")
-        try:
-            image, names = wc.read_exr_colour(out)
-        except BaseException:
-            with contextlib.suppress(FileNotFoundError):
-                os.remove(out)
-            raise
+        image, names = wc.read_exr_colour(out)  # a file left by a failure goes with the folder
         if self._channels is None:
             self._channels = names
         elif names != self._channels:  # another layer written by mistake: its colour is not the image's
