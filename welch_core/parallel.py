@@ -59,9 +59,25 @@ def at_once(*tasks: Callable[[], object]) -> list:
     pool's: a task may use `by_rows`, whose chunks would wait behind the tasks in a pool of as many threads."""
     if len(tasks) < 2 or cores() < 2:
         return [task() for task in tasks]
-    with ThreadPoolExecutor(len(tasks), thread_name_prefix="welch-tasks") as executor:
-        futures = [executor.submit(task) for task in tasks]
-    return [future.result() for future in futures]
+    results: list = [None] * len(tasks)
+    errors: list = [None] * len(tasks)
+
+    def run(index: int) -> None:
+        try:
+            results[index] = tasks[index]()
+        except BaseException as exc:  # raised on the caller's thread once every task has ended
+            errors[index] = exc
+
+    # Daemon threads: a Ctrl-C while a task is stuck (reading a pipe nobody writes) ends the process, not waits.
+    threads = [threading.Thread(target=run, args=(i,), name="welch-tasks", daemon=True) for i in range(len(tasks))]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    for error in errors:
+        if error is not None:
+            raise error
+    return results
 
 
 def one_ahead(work: Callable[[object], object], items: Iterable) -> Iterator:
